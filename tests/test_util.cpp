@@ -1,0 +1,29 @@
+// Tests of the test helpers themselves: a helper that cannot fail would hide every defect it is used for.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "test_util.hpp"
+
+using stratum_test::ulp_distance;
+
+TEST_CASE("ulp_distance counts representable values between two doubles") {
+    const double x = 1.0;
+    CHECK(ulp_distance(x, x) == 0);
+    CHECK(ulp_distance(x, std::nextafter(x, 2.0)) == 1);
+    CHECK(ulp_distance(std::nextafter(x, 0.0), std::nextafter(x, 2.0)) == 2);
+    CHECK(ulp_distance(0.0, -0.0) == 0);
+    // Across zero: the smallest subnormals on either side are 2 apart.
+    const double tiny = std::numeric_limits<double>::denorm_min();
+    CHECK(ulp_distance(-tiny, tiny) == 2);
+    CHECK(ulp_distance(1.0, std::nan("")) == std::numeric_limits<std::int64_t>::max());
+}
+
+TEST_CASE("ulp_distance works for float") {
+    const float x = 0.75f;
+    CHECK(ulp_distance(x, std::nextafter(x, 1.0f)) == 1);
+    CHECK(ulp_distance(-x, std::nextafter(-x, -1.0f)) == 1);
+    // 1 and 2 differ by 2^23 floats.
+    CHECK(ulp_distance(1.0f, 2.0f) == (std::int64_t{1} << 23));
+}

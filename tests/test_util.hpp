@@ -1,0 +1,38 @@
+// tests/test_util.hpp -- helpers shared by the doctest suites (not installed).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <type_traits>
+
+namespace stratum_test {
+
+/// Distance in units in the last place between two finite values of the same type: the number of
+/// representable values strictly between them plus one (0 when equal; +0 and -0 are equal).
+/// Works for float and double by mapping the bit pattern onto a monotone integer line.
+template <class Real>
+std::int64_t ulp_distance(Real a, Real b) {
+    static_assert(std::is_same_v<Real, float> || std::is_same_v<Real, double>,
+                  "ulp_distance supports float and double");
+    if (std::isnan(a) || std::isnan(b)) return std::numeric_limits<std::int64_t>::max();
+    using Bits = std::conditional_t<std::is_same_v<Real, float>, std::int32_t, std::int64_t>;
+    auto ordered = [](Real x) {
+        Bits bits;
+        std::memcpy(&bits, &x, sizeof bits);
+        // Negative values: flip to a monotone ordering below zero.
+        return bits < 0 ? static_cast<std::int64_t>(std::numeric_limits<Bits>::min()) - bits
+                        : static_cast<std::int64_t>(bits);
+    };
+    const std::int64_t d = ordered(a) - ordered(b);
+    return d < 0 ? -d : d;
+}
+
+/// |a - b| <= tol * max(|a|, |b|), with tol relative. Use for values that are never near zero.
+template <class Real>
+bool close_rel(Real a, Real b, Real tol) {
+    return std::fabs(a - b) <= tol * std::fmax(std::fabs(a), std::fabs(b));
+}
+
+}  // namespace stratum_test
