@@ -1,0 +1,354 @@
+// Rough and smooth dielectric interfaces, pointwise: reciprocity, index matching, eta -> 1, total internal
+// reflection, hard limits, the propagation-direction adapter, the smooth interface, and sampling.
+// Integrals (energies, Monte Carlo) are in test_interface_energy.cpp.
+#include <doctest/doctest.h>
+
+#include <stratum/interface.hpp>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "test_util.hpp"
+
+using stratum::RoughDielectric;
+using stratum::Shadowing;
+using stratum::SmoothDielectric;
+using stratum::Vec3;
+
+namespace {
+
+constexpr double pi = 3.141592653589793238462643383279502884;
+
+double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1p-53; }
+
+// Uniform direction on the sphere (own mapping, independent of the library).
+Vec3<double> random_direction(std::mt19937_64& rng) {
+    const double z = 2 * uniform(rng) - 1, phi = 2 * pi * uniform(rng);
+    const double s = std::sqrt(std::fmax(0.0, 1 - z * z));
+    return {s * std::cos(phi), s * std::sin(phi), z};
+}
+
+Vec3<double> dir(double mu, double phi) {
+    const double s = std::sqrt(std::fmax(0.0, (1 - mu) * (1 + mu)));
+    return {s * std::cos(phi), s * std::sin(phi), mu};
+}
+
+bool finite_nonnegative(double v) { return std::isfinite(v) && v >= 0; }
+
+}  // namespace
+
+TEST_CASE("the BRDF is reciprocal on both sides: brdf(wi, wo) = brdf(wo, wi)") {
+    std::mt19937_64 rng(1);
+    for (double sigma : {0.02, 0.3, 1.0})
+        for (double eta : {1 / 2.5, 1 / 1.4, 1.4, 2.5})
+            for (auto form : {Shadowing::height_correlated, Shadowing::separable}) {
+                const RoughDielectric<double> rd(sigma, 1.0, eta, form);
+                int nonzero = 0;
+                for (int i = 0; i < 400; ++i) {
+                    Vec3<double> wi = random_direction(rng), wo = random_direction(rng);
+                    if (wi.z * wo.z < 0) wo.z = -wo.z;
+                    const double a = rd.brdf(wi, wo), b = rd.brdf(wo, wi);
+                    nonzero += a > 0;
+                    // Same formula with the roles swapped: h, F(i.h) = F(o.h), G2 symmetric; a few roundings.
+                    CHECK(std::fabs(a - b) <= 1e-13 * std::fmax(a, b) + 1e-300);
+                }
+                CHECK(nonzero > 100);  // the check is not vacuous
+            }
+}
+
+TEST_CASE("the BTDF obeys generalized reciprocity t_ij(i, o) / n_j^2 = t_ji(o, i) / n_i^2") {
+    std::mt19937_64 rng(2);
+    for (double sigma : {0.02, 0.3, 1.0})
+        for (double eta : {1 / 2.5, 1 / 1.4, 1.4, 2.5})
+            for (auto form : {Shadowing::height_correlated, Shadowing::separable}) {
+                const double n_above = 1.0, n_below = eta;
+                const RoughDielectric<double> rd(sigma, n_above, n_below, form);
+                int nonzero = 0;
+                for (int i = 0; i < 400; ++i) {
+                    // Half the pairs uniformly at random, half from the sampler (inside the lobe for small sigma).
+                    const Vec3<double> wi = random_direction(rng);
+                    Vec3<double> wo = random_direction(rng);
+                    if (i % 2) {
+                        const auto smp = rd.sample(wi, 0.999999, uniform(rng), uniform(rng));  // refraction lobe
+                        if (smp.valid()) wo = smp.wo;
+                    }
+                    if (wi.z * wo.z > 0) wo.z = -wo.z;
+                    const double n_i = wi.z > 0 ? n_above : n_below, n_o = wo.z > 0 ? n_above : n_below;
+                    const double a = rd.btdf(wi, wo) / (n_o * n_o), b = rd.btdf(wo, wi) / (n_i * n_i);
+                    nonzero += a > 0;
+                    // Fresnel from either side of a facet is the same number computed two ways: ~1e-15 relative
+                    // in F, i.e. eps / (1 - F) relative in 1 - F, which reaches 1e-10 where 1 - F ~ 1e-6 (facets
+                    // at the critical angle): tolerance 1e-9. Near-grazing facets make (o.h) ill-conditioned, but
+                    // there the BTDF is negligible: absolute floor 1e-12.
+                    CHECK(std::fabs(a - b) <= 1e-9 * std::fmax(a, b) + 1e-12);
+                }
+                CHECK(nonzero > 50);
+            }
+}
+
+TEST_CASE("an index-matched interface reflects nothing and transmits straight through (a delta)") {
+    for (double n : {1.0, 1.33, 2.5}) {
+        const RoughDielectric<double> rd(0.3, n, n);
+        CHECK(rd.index_matched());
+        const Vec3<double> wi = dir(0.6, 0.4);
+        CHECK(rd.brdf(wi, dir(0.6, 0.4 + pi)) == 0.0);
+        CHECK(rd.btdf(wi, -wi) == 0.0);  // a delta is not evaluated
+        CHECK(rd.pdf(wi, -wi) == 0.0);
+        for (double mu : {1.0, 0.5, 1e-8, -0.5}) {
+            const auto a = rd.albedo(mu);
+            CHECK(a.reflectance == 0.0);
+            CHECK(a.transmittance == 1.0);
+        }
+        const auto s = rd.sample(wi, 0.3, 0.4, 0.5);
+        CHECK(s.delta);
+        CHECK(s.valid());
+        CHECK(s.wo.x == -wi.x);
+        CHECK(s.wo.z == -wi.z);
+        CHECK(s.value * std::fabs(s.wo.z) / s.pdf == doctest::Approx(1.0).epsilon(1e-15));
+        const SmoothDielectric<double> sd(n, n);
+        const auto sc = sd.scatter(wi);
+        CHECK(sc.reflectance == 0.0);
+        CHECK(sc.transmittance == 1.0);
+        CHECK(sc.radiance_transmittance == 1.0);
+        CHECK(std::fabs(sc.transmitted.x + wi.x) < 1e-15);
+        CHECK(std::fabs(sc.transmitted.z + wi.z) < 1e-15);
+    }
+}
+
+TEST_CASE("indices within 1e-9 of matching: finite BTDF, vanishing reflection, continuous energies") {
+    // eta = 1 + 1e-9: the BTDF's Jacobian denominator |eta_i i + eta_o o|^2 is ~1e-18 at straight-through;
+    // the value is huge but finite. Energies come from the facet-space integral and are smooth in eta.
+    for (double eta : {1 + 1e-9, 1 / (1 + 1e-9), 1.0001, 1 / 1.0001}) {
+        const RoughDielectric<double> rd(0.3, 1.0, eta);
+        for (double mu : {1.0, 0.7, 0.2}) {
+            const Vec3<double> wi = dir(mu, 0.0);
+            const double straight = rd.btdf(wi, -wi);
+            CHECK(std::isfinite(straight));
+            CHECK(straight > 0);
+            for (double d : {1e-12, 1e-9, 1e-6, 1e-3}) {
+                const Vec3<double> wo = stratum::normalize(Vec3<double>{-wi.x + d, d, -wi.z});
+                CHECK(finite_nonnegative(rd.btdf(wi, wo)));
+                CHECK(finite_nonnegative(rd.pdf(wi, wo)));
+            }
+            // F ~ (eta - 1)^2 / (16 mu^4) at the mirror direction, times D / (4 mu^2) <= 1.8 / (4 mu^2).
+            CHECK(rd.brdf(wi, dir(mu, pi)) < (eta - 1) * (eta - 1) * 1e4);
+        }
+    }
+    // Continuity of the hemispherical energies as eta -> 1, for the masking-only form towards exact
+    // index matching {0, 1} (the error is F ~ (eta - 1)^2 plus the quadrature's 1e-8).
+    for (double mu : {0.9, 0.5}) {
+        const RoughDielectric<double> near(0.3, 1.0, 1 + 1e-9, Shadowing::masking_only);
+        const auto a = near.albedo(mu);
+        CHECK(a.reflectance < 1e-12);
+        CHECK(std::fabs(a.transmittance - 1) < 1e-7);
+        // With shadowing the eta -> 1 limit keeps the model's shadowing loss (documented in interface.hpp):
+        // continuous in eta, and equal for eta = 1 +- 1e-9 and 1 + 1e-6 to within the quadrature error.
+        const RoughDielectric<double> hc1(0.3, 1.0, 1 + 1e-9), hc2(0.3, 1.0, 1 / (1 + 1e-9)), hc3(0.3, 1.0, 1 + 1e-6);
+        const double t1 = hc1.albedo(mu).transmittance, t2 = hc2.albedo(mu).transmittance, t3 = hc3.albedo(mu).transmittance;
+        CHECK(std::fabs(t1 - t2) < 1e-7);
+        CHECK(std::fabs(t1 - t3) < 1e-7);
+        CHECK(t1 <= 1.0);
+    }
+}
+
+TEST_CASE("total internal reflection: none transmitted by a smooth interface, a falling tail by a rough one") {
+    const double eta_dense = 1.4;  // light from below (inside the dense medium), wi.z < 0
+    const double mu_c = std::sqrt(1 - 1 / (eta_dense * eta_dense));  // critical cosine inside
+    const SmoothDielectric<double> sd(1.0, eta_dense);
+    for (double mu : {0.01, 0.5 * mu_c, 0.99 * mu_c}) {
+        CHECK(sd.transmittance(-mu) == 0.0);
+        CHECK(sd.reflectance(-mu) == 1.0);
+        CHECK(sd.scatter(dir(-mu, 0.3)).total_internal_reflection);
+    }
+    CHECK(sd.transmittance(-1.01 * mu_c) > 0.0);
+    // Rough: beyond the critical angle only tilted facets transmit; the transmittance grows with sigma
+    // and vanishes as sigma -> 0.
+    const double mu = 0.8 * mu_c;
+    double prev = -1;
+    for (double sigma : {1e-3, 0.02, 0.1, 0.3, 1.0}) {
+        const RoughDielectric<double> rd(sigma, 1.0, eta_dense);
+        const auto a = rd.albedo(-mu);
+        CHECK(a.transmittance >= prev);
+        prev = a.transmittance;
+        if (sigma == 1e-3) CHECK(a.transmittance < 1e-12);  // the lobe is ~100 sigma away from any transmitting facet
+    }
+    CHECK(prev > 0.01);
+    // Continuity across the critical angle for the rough interface.
+    const RoughDielectric<double> rd(0.3, 1.0, eta_dense);
+    const double t_below = rd.albedo(-(mu_c - 1e-7)).transmittance, t_above = rd.albedo(-(mu_c + 1e-7)).transmittance;
+    CHECK(std::fabs(t_below - t_above) < 1e-5);
+}
+
+TEST_CASE("hard limits: every sigma, eta near 1 and far, grazing and horizon directions give finite values") {
+    const double sigmas[] = {1e-4, 1e-3, 0.02, 0.3, 1.0, 2.0};
+    const double etas[] = {1.0, 1 + 1e-9, 1.0001, 1.4, 3.0, 1 / (1 + 1e-9), 1 / 1.0001, 1 / 1.4, 1 / 3.0};
+    const double mus[] = {1.0, 0.5, 1e-4, 1e-8, 0.0};
+    for (double sigma : sigmas)
+        for (double eta : etas) {
+            const RoughDielectric<double> rd(sigma, 1.0, eta);
+            for (double mi : mus)
+                for (double mo : mus)
+                    for (double side_i : {1.0, -1.0})
+                        for (double side_o : {1.0, -1.0})
+                            for (double phi : {0.0, 1.0, pi}) {
+                                const Vec3<double> wi = dir(side_i * mi, 0.0), wo = dir(side_o * mo, phi);
+                                INFO("sigma " << sigma << " eta " << eta << " mu_i " << side_i * mi << " mu_o " << side_o * mo);
+                                CHECK(finite_nonnegative(rd.eval(wi, wo)));
+                                CHECK(finite_nonnegative(rd.pdf(wi, wo)));
+                            }
+            for (double mu : {1.0, 1e-8, 0.0, -1e-4, -0.5}) {
+                const auto a = rd.albedo(mu);
+                INFO("sigma " << sigma << " eta " << eta << " mu " << mu);
+                CHECK(finite_nonnegative(a.reflectance));
+                CHECK(finite_nonnegative(a.transmittance));
+                CHECK(a.reflectance + a.transmittance <= 1 + 1e-9);  // quadrature error budget (see header)
+            }
+        }
+    // Directions on the horizon are degenerate input: 0, as in pbrt.
+    const RoughDielectric<double> rd(0.3, 1.0, 1.4);
+    CHECK(rd.eval({1, 0, 0}, dir(0.5, 0)) == 0.0);
+    CHECK(rd.eval(dir(0.5, 0), {0, 1, 0}) == 0.0);
+}
+
+TEST_CASE("as sigma -> 0 the rough energies converge to the smooth interface's") {
+    for (double eta : {1 / 1.4, 1.4, 2.5})
+        for (double mu : {0.95, 0.6, -0.9, -0.4}) {
+            const SmoothDielectric<double> sd(1.0, eta);
+            double prev_err = 1;
+            for (double sigma : {0.1, 0.02, 1e-3, 1e-4}) {
+                const RoughDielectric<double> rd(sigma, 1.0, eta);
+                const auto a = rd.albedo(mu);
+                const double err = std::fmax(std::fabs(a.reflectance - sd.reflectance(mu)),
+                                             std::fabs(a.transmittance - sd.transmittance(mu)));
+                INFO("eta " << eta << " mu " << mu << " sigma " << sigma << " err " << err);
+                // The difference is O(sigma^2) (second moment of the slopes) away from the critical angle.
+                CHECK(err <= prev_err + 1e-9);
+                if (sigma == 1e-4) CHECK(err < 1e-6);
+                prev_err = err;
+            }
+        }
+}
+
+TEST_CASE("eval_propagation is eval with wi = -(incident propagation) and peaks at dphi = 0") {
+    const RoughDielectric<double> rd(0.1, 1.0, 1.4);
+    std::mt19937_64 rng(3);
+    for (int i = 0; i < 200; ++i) {
+        const double mu_in = 2 * uniform(rng) - 1, mu_out = 2 * uniform(rng) - 1, dphi = 2 * pi * uniform(rng);
+        // Independent construction: incident propagation d_in at azimuth 0, wi = -d_in; wo at azimuth dphi.
+        const Vec3<double> d_in = dir(mu_in, 0.0), wo = dir(mu_out, dphi);
+        const double a = rd.eval_propagation(mu_in, mu_out, std::cos(dphi)), b = rd.eval(-d_in, wo);
+        CHECK(std::fabs(a - b) <= 1e-10 * std::fmax(a, b) + 1e-300);
+    }
+    // Light travelling down at 40 degrees: specular reflection leaves upwards at the same cosine, dphi = 0;
+    // refraction continues downwards at Snell's cosine, dphi = 0.
+    const double mu_in = -std::cos(40 * pi / 180);
+    const SmoothDielectric<double> sd(1.0, 1.4);
+    const double mu_t = sd.transmitted_cosine(-mu_in);  // < 0: downwards
+    for (double d : {0.05, 0.2, pi / 2, pi}) {
+        CHECK(rd.eval_propagation(mu_in, -mu_in, 1.0) > rd.eval_propagation(mu_in, -mu_in, std::cos(d)));
+        CHECK(rd.eval_propagation(mu_in, mu_t, 1.0) > rd.eval_propagation(mu_in, mu_t, std::cos(d)));
+    }
+    CHECK(rd.eval_propagation(mu_in, mu_t, 1.0) > 10 * rd.eval_propagation(mu_in, -mu_t, 1.0));
+}
+
+TEST_CASE("the smooth interface: Fresnel, Snell's law, the radiance factor (n_t/n_i)^2") {
+    const double n1 = 1.0, n2 = 1.4;
+    const SmoothDielectric<double> sd(n1, n2);
+    for (double mu : {1.0, 0.8, 0.3, 0.05, -1.0, -0.9, -0.75}) {
+        const Vec3<double> wi = dir(mu, 0.7);
+        const auto s = sd.scatter(wi);
+        const double ni = mu > 0 ? n1 : n2, nt = mu > 0 ? n2 : n1;
+        CHECK(s.reflectance == stratum::fresnel_dielectric(std::fabs(mu), nt / ni));
+        CHECK(s.reflectance + s.transmittance == 1.0);
+        CHECK(s.reflected.x == -wi.x);
+        CHECK(s.reflected.z == wi.z);
+        if (s.total_internal_reflection) continue;
+        // Snell: n_i sin_i = n_t sin_t, opposite side, same plane (transmitted is -wi bent towards the normal).
+        const double sin_i = std::sqrt(1 - mu * mu), sin_t = std::sqrt(1 - s.transmitted.z * s.transmitted.z);
+        CHECK(std::fabs(ni * sin_i - nt * sin_t) < 1e-14);
+        CHECK(s.transmitted.z * mu < 0);
+        CHECK(std::fabs(s.transmitted.x * wi.y - s.transmitted.y * wi.x) < 1e-15);  // coplanar with the normal
+        CHECK(std::fabs(stratum::length(s.transmitted) - 1) < 1e-15);
+        CHECK(s.transmitted.z == doctest::Approx(sd.transmitted_cosine(mu)).epsilon(1e-14));
+        CHECK(s.radiance_transmittance == doctest::Approx((nt / ni) * (nt / ni) * s.transmittance).epsilon(1e-15));
+        // Reversing the ray (light arriving along the transmitted direction) gives back wi.
+        CHECK(std::fabs(sd.transmitted_cosine(sd.transmitted_cosine(mu)) - mu) < 1e-14);
+    }
+}
+
+TEST_CASE("sample returns eval and pdf of its direction, with a weight G2/G1(wi) in [0, 1]") {
+    // For a visible-normal sampler with Fresnel lobe selection, f |wo.z| / pdf = G2(wi, wo) / G1(wi) exactly
+    // (D, F and the Jacobian cancel): an independent identity between eval, pdf and the Smith functions.
+    std::mt19937_64 rng(4);
+    for (double sigma : {0.02, 0.3, 1.0})
+        for (double eta : {1 / 1.4, 1.4}) {
+            const RoughDielectric<double> rd(sigma, 1.0, eta);
+            const auto& b = rd.distribution();
+            int valid = 0;
+            for (int i = 0; i < 2000; ++i) {
+                const Vec3<double> wi = random_direction(rng);
+                const auto s = rd.sample(wi, uniform(rng), uniform(rng), uniform(rng));
+                if (!s.valid()) continue;
+                ++valid;
+                CHECK(s.value == rd.eval(wi, s.wo));
+                CHECK(s.pdf == rd.pdf(wi, s.wo));
+                CHECK(s.reflected == (wi.z * s.wo.z > 0));
+                const double li = b.Lambda(wi.z), lo = b.Lambda(s.wo.z);
+                const double g2_over_g1 = s.reflected ? (1 + li) / (1 + li + lo)
+                                                      : std::exp(std::lgamma(1 + li) + std::lgamma(1 + lo) - std::lgamma(2 + li + lo)) * (1 + li);
+                const double weight = s.value * std::fabs(s.wo.z) / s.pdf;
+                CHECK(weight == doctest::Approx(g2_over_g1).epsilon(1e-9));
+                CHECK(weight <= 1 + 1e-12);
+            }
+            CHECK(valid > 1500);  // only samples sent into the wrong hemisphere fail (~15% at sigma = 1)
+        }
+}
+
+TEST_CASE("sample never produces NaN for any u in [0, 1)") {
+    const double us[] = {0.0, 1e-300, 0x1p-53, 0.5, 1 - 0x1p-53};
+    const Vec3<double> dirs[] = {{0, 0, 1}, {0, 0, -1}, {std::sqrt(1 - 1e-16), 0, 1e-8}, {0.6, 0, -0.8}, {1, 0, 0}};
+    int bad = 0;
+    for (double sigma : {1e-4, 0.3, 2.0})
+        for (double eta : {1 / 1.4, 1 + 1e-9, 2.5})
+            for (const auto& wi : dirs) {
+                const RoughDielectric<double> rd(sigma, 1.0, eta);
+                for (double a : us)
+                    for (double b : us)
+                        for (double c : us) {
+                            const auto s = rd.sample(wi, a, b, c);
+                            const bool ok = std::isfinite(s.value) && std::isfinite(s.pdf) && std::isfinite(s.wo.x) &&
+                                            std::isfinite(s.wo.y) && std::isfinite(s.wo.z) && s.value >= 0 && s.pdf >= 0;
+                            bad += !ok;
+                        }
+            }
+    CHECK(bad == 0);
+}
+
+TEST_CASE("float, double and long double instantiations agree") {
+    const RoughDielectric<float> f(0.3f, 1.0f, 1.4f);
+    const RoughDielectric<double> d(0.3, 1.0, 1.4);
+    const RoughDielectric<long double> l(0.3L, 1.0L, 1.4L);
+    const Vec3<double> wi = dir(0.7, 0.1), wo_r = dir(0.5, 2.9), wo_t = dir(-0.8, 3.0);
+    auto to_f = [](Vec3<double> v) { return Vec3<float>{float(v.x), float(v.y), float(v.z)}; };
+    auto to_l = [](Vec3<double> v) { return Vec3<long double>{v.x, v.y, v.z}; };
+    for (const auto& wo : {wo_r, wo_t}) {
+        const double ref = d.eval(wi, wo);
+        CHECK(ref > 0);
+        CHECK(static_cast<double>(f.eval(to_f(wi), to_f(wo))) == doctest::Approx(ref).epsilon(1e-4));
+        CHECK(static_cast<double>(l.eval(to_l(wi), to_l(wo))) == doctest::Approx(ref).epsilon(1e-13));
+    }
+    CHECK(static_cast<double>(f.albedo(0.7f).transmittance) == doctest::Approx(d.albedo(0.7).transmittance).epsilon(1e-6));
+}
+
+TEST_CASE("invalid parameters are rejected with messages naming them") {
+    CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.0, 1.0, 1.4), doctest::Contains("sigma"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, -1.0, 1.4), doctest::Contains("eta_above"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, 1.0, std::numeric_limits<double>::quiet_NaN()),
+                         doctest::Contains("eta_below"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(SmoothDielectric<double>(0.0, 1.4), doctest::Contains("eta_above"), std::invalid_argument);
+    const RoughDielectric<double> rd(0.3, 1.0, 1.4);
+    CHECK_THROWS_WITH_AS((void)rd.albedo(0.5, 1), doctest::Contains("nodes"), std::invalid_argument);
+}
