@@ -1,0 +1,114 @@
+// stratum/adding.hpp -- the adding equations: the operators of two stacked components (interface over
+// slab, slab over slab, ...) combined into the operators of the stack, one Fourier mode at a time.
+//
+// Convention. A component is described, for one Fourier mode k and M ordinates, by four M x M row-major
+// operators of the kind of physics-notes section 5 (row n = outgoing ordinate, column m = incoming
+// ordinate, radiance coefficients in propagation directions, out = L in):
+//   reflection_down   light arriving from above (travelling down), reflected back up, out of the top;
+//   transmission_down light arriving from above, transmitted down, out of the bottom;
+//   reflection_up     light arriving from below (travelling up), reflected back down, out of the bottom;
+//   transmission_up   light arriving from below, transmitted up, out of the top.
+// Both components must use the same ordinates for the medium between them.
+//
+// Derivation (component 1 on top of component 2). Light from above with coefficients x: let D be the
+// downward and U the upward radiance between the two. Then D = T1d x + R1u U and U = R2d D, so
+//     D = (I - R1u R2d)^{-1} T1d x,
+//     R_d = R1d + T1u R2d (I - R1u R2d)^{-1} T1d,        T_d = T2d (I - R1u R2d)^{-1} T1d,
+// and from below, with U = T2u x + R2d D, D = R1u U:
+//     R_u = R2u + T2d R1u (I - R2d R1u)^{-1} T2u,        T_u = T1u (I - R2d R1u)^{-1} T2u.
+// (I - R1u R2d)^{-1} is the sum of the multiple reflections between the components. It exists whenever
+// light between them is eventually lost (absorbed or transmitted out); for two lossless, totally
+// reflecting components trapping light at some ordinate it is singular: the LU then replaces the zero
+// pivot by a tiny number (results stay finite but that trapped ordinate is meaningless).
+#pragma once
+
+#include <cstddef>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "detail/linalg.hpp"
+#include "slab.hpp"
+
+namespace stratum {
+
+/// The four operators of one component for one Fourier mode (see the header comment), each size x size.
+template <class Real = double>
+struct ComponentOperators {
+    std::size_t size = 0;
+    std::vector<Real> reflection_down, transmission_down, reflection_up, transmission_up;
+};
+
+/// A bare slab as a component: it is the same seen from above and from below.
+template <class Real>
+ComponentOperators<Real> slab_component(const SlabModeOperators<Real>& s) {
+    ComponentOperators<Real> c;
+    c.size = s.size;
+    c.reflection_down = c.reflection_up = s.reflection;
+    c.transmission_down = c.transmission_up = s.transmission;
+    return c;
+}
+
+namespace detail {
+
+template <class Real>
+Matrix<Real> as_matrix(std::size_t n, const std::vector<Real>& v) {
+    if (v.size() != n * n) throw std::invalid_argument("stratum: component operator is not size x size");
+    Matrix<Real> m(n, n);
+    m.data = v;
+    return m;
+}
+
+/// (I - A B)
+template <class Real>
+Matrix<Real> one_minus_product(const Matrix<Real>& a, const Matrix<Real>& b) {
+    Matrix<Real> m = multiply(a, b);
+    for (Real& x : m.data) x = -x;
+    for (std::size_t i = 0; i < m.rows; ++i) m(i, i) += Real(1);
+    return m;
+}
+
+}  // namespace detail
+
+/// The operators of `top` stacked on `bottom` (same size). ~ 14 M^3 flops.
+/// Throws std::invalid_argument if the sizes differ.
+template <class Real>
+ComponentOperators<Real> add_components(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom) {
+    if (top.size != bottom.size) throw std::invalid_argument("stratum: adding components of different sizes");
+    const std::size_t n = top.size;
+    using detail::Matrix;
+    const Matrix<Real> r1d = detail::as_matrix(n, top.reflection_down), t1d = detail::as_matrix(n, top.transmission_down);
+    const Matrix<Real> r1u = detail::as_matrix(n, top.reflection_up), t1u = detail::as_matrix(n, top.transmission_up);
+    const Matrix<Real> r2d = detail::as_matrix(n, bottom.reflection_down), t2d = detail::as_matrix(n, bottom.transmission_down);
+    const Matrix<Real> r2u = detail::as_matrix(n, bottom.reflection_up), t2u = detail::as_matrix(n, bottom.transmission_up);
+
+    ComponentOperators<Real> out;
+    out.size = n;
+    {   // from above: X = (I - R1u R2d)^{-1} T1d
+        Matrix<Real> x = t1d;
+        detail::lu_solve(detail::lu_factor(detail::one_minus_product(r1u, r2d)), x);
+        Matrix<Real> rd = detail::multiply(t1u, detail::multiply(r2d, x));
+        for (std::size_t i = 0; i < n * n; ++i) rd.data[i] += r1d.data[i];
+        out.reflection_down = std::move(rd.data);
+        out.transmission_down = detail::multiply(t2d, x).data;
+    }
+    {   // from below: Y = (I - R2d R1u)^{-1} T2u
+        Matrix<Real> y = t2u;
+        detail::lu_solve(detail::lu_factor(detail::one_minus_product(r2d, r1u)), y);
+        Matrix<Real> ru = detail::multiply(t2d, detail::multiply(r1u, y));
+        for (std::size_t i = 0; i < n * n; ++i) ru.data[i] += r2u.data[i];
+        out.reflection_up = std::move(ru.data);
+        out.transmission_up = detail::multiply(t1u, y).data;
+    }
+    return out;
+}
+
+/// Doubling: 2^doublings identical copies of `c` stacked (c itself for doublings = 0).
+template <class Real>
+ComponentOperators<Real> double_component(ComponentOperators<Real> c, int doublings) {
+    detail::require_count("doublings", doublings, 0);
+    for (int i = 0; i < doublings; ++i) c = add_components(c, c);
+    return c;
+}
+
+}  // namespace stratum
