@@ -457,7 +457,8 @@ template <class Real = double>
 class InterfaceOperators {
 public:
     /// Rough interface: the operators of the interface's BRDF/BTDF as fourier_operators would build them,
-    /// with reciprocity used to halve the work (index matching: identity / zero, exactly).
+    /// with reciprocity used to halve the work when the shadowing is reciprocal (every model but
+    /// Shadowing::masking_only; index matching: identity / zero, exactly).
     /// Cost ~2 M^2 x (phi samples) x (K + BSDF evaluation).
     /// renormalization = hemispherical_totals scales every column (all modes alike) so that its flux equals
     /// RoughDielectric::albedo at that ordinate; a column that captured less than half or more than twice
@@ -494,6 +495,21 @@ public:
         const auto weight = [&](int i) {
             return ordinates.weights[static_cast<std::size_t>(i)] * ordinates.nodes[static_cast<std::size_t>(i)];
         };
+        // Shadowing::masking_only (G1 of the incident direction alone) is not reciprocal: no mirroring then.
+        const bool reciprocal = interface.shadowing() != Shadowing::masking_only;
+        if (!reciprocal) {
+            const auto build = [&](Incidence side, bool transmission) {
+                const detail::RoughKernel<Real> kernel{&rough_, side, transmission};
+                return fourier_operators(kernel, [&kernel](Real x, Real y) { return kernel.features(x, y); },
+                                         ordinates, modes, rule_);
+            };
+            r12_ = build(Incidence::from_above, false);
+            t12_ = build(Incidence::from_above, true);
+            r21_ = build(Incidence::from_below, false);
+            t21_ = build(Incidence::from_below, true);
+            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates);
+            return;
+        }
         for (int a = 0; a < m; ++a) {
             const Real mu_a = ordinates.nodes[static_cast<std::size_t>(a)];
             for (int b = 0; b < m; ++b) {

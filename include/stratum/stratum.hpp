@@ -2,6 +2,24 @@
 // the one you need (e.g. <stratum/dipole.hpp>) to pull in nothing else.
 #pragma once
 
-#include "fresnel.hpp"
+// Numerics
+#include "legendre.hpp"
 #include "quadrature.hpp"
+
+// Pointwise physics
+#include "fresnel.hpp"
+#include "henyey_greenstein.hpp"
+#include "interface.hpp"
+#include "microfacet.hpp"
 #include "vec3.hpp"
+
+// Discretization and the layer solver
+#include "adding.hpp"
+#include "interface_operators.hpp"
+#include "layer.hpp"
+#include "slab.hpp"
+
+// Diffusion
+#include "dipole.hpp"
+#include "lambert_w.hpp"
+#include "single_scattering.hpp"

@@ -1,0 +1,133 @@
+// accuracy_report: what accuracy costs in time, for every knob of stratum.
+//
+// For each knob (ordinates, Fourier modes, azimuthal samples, Legendre terms, table sizes) it measures the
+// error against an independent or converged reference and the wall time, and prints Markdown tables
+// (docs/accuracy.md is this program's output). Build with the bench preset, then run
+//     ./build/bench/bench/stratum_accuracy_report > docs/accuracy.md
+// Times are processor times, the best of repeated runs, on the machine it runs on; errors do not depend on it.
+#include <stratum/stratum.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <vector>
+
+#include "accuracy_modules.hpp"
+
+namespace {
+
+/// Processor time of f() in milliseconds, best of `repeats` runs (robust on a loaded machine).
+double median_ms(const std::function<void()>& f, int repeats = 5) { return stratum_accuracy::best_time_ms(f, repeats); }
+
+// ---- Layer solver: ordinates M (with K = 2M modes) on Stam's skin layer -------------------------------------
+struct SkinProbe {
+    double albedo[3], transmittance[3], brdf[4], btdf[4];
+};
+
+SkinProbe probe(const stratum::LayeredSurface<double>& layer) {
+    SkinProbe p{};
+    const double mus[3] = {1.0, 0.7, 0.3};
+    for (int i = 0; i < 3; ++i) {
+        p.albedo[i] = layer.albedo(mus[i]).subsurface;
+        p.transmittance[i] = layer.transmittance(mus[i]);
+    }
+    const stratum::Vec3<double> wi = stratum::spherical_direction(0.8, 0.0);
+    const double out[4][2] = {{0.9, 3.0}, {0.5, 0.0}, {0.5, 1.6}, {0.2, 3.1}};
+    for (int j = 0; j < 4; ++j) {
+        p.brdf[j] = layer.subsurface_brdf(wi, stratum::spherical_direction(out[j][0], out[j][1]));
+        p.btdf[j] = layer.btdf(wi, stratum::spherical_direction(-out[j][0], out[j][1]));
+    }
+    return p;
+}
+
+double max_relative(const double* a, const double* b, int n) {
+    double e = 0;
+    for (int i = 0; i < n; ++i) e = std::max(e, std::fabs(a[i] - b[i]) / std::fabs(b[i]));
+    return e;
+}
+
+void layer_ordinates() {
+    const stratum::RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const auto slab = stratum::Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    auto solve = [&](int m) {
+        stratum::LayerOptions o;
+        o.ordinates = m;
+        return stratum::solve_layer(slab, top, bottom, o);
+    };
+    const int reference_m = 48;
+    const SkinProbe ref = probe(solve(reference_m));
+    std::printf("\n## Layer solver: ordinates\n\nStam's skin layer (n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8, "
+                "e^-tau 0.5), K = 2M modes, delta-M. Error: max relative difference from M = %d over the "
+                "subsurface albedo and transmittance at mu0 = 1, 0.7, 0.3 and r_s, t_s at 4 directions "
+                "(mu0 = 0.8). Time: solve_layer, all outputs.\n\n", reference_m);
+    std::printf("| M | K | albedo/transmittance error | r_s error | t_s error | solve (ms) | r_s eval (us) |\n");
+    std::printf("|---|---|---|---|---|---|---|\n");
+    for (int m : {4, 8, 12, 16, 24, 32}) {
+        stratum::LayeredSurface<double> layer = solve(m);
+        const double t = median_ms([&] { layer = solve(m); }, 3);
+        const SkinProbe p = probe(layer);
+        const double e_flux = std::max(max_relative(p.albedo, ref.albedo, 3), max_relative(p.transmittance, ref.transmittance, 3));
+        stratum::LayeredSurface<double>::Workspace ws;
+        const stratum::Vec3<double> wi = stratum::spherical_direction(0.8, 0.0), wo = stratum::spherical_direction(0.5, 2.0);
+        double sink = 0;
+        const double eval_us = 1e3 * median_ms([&] { for (int i = 0; i < 20; ++i) sink += layer.subsurface_brdf(wi, wo, ws); }, 3) / 20;
+        std::printf("| %d | %d | %.1e | %.1e | %.1e | %.1f | %.0f |\n", m, layer.modes(), e_flux,
+                    max_relative(p.brdf, ref.brdf, 4), max_relative(p.btdf, ref.btdf, 4), t, eval_us + 0 * sink);
+    }
+}
+
+void layer_tolerance() {
+    const stratum::RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const auto slab = stratum::Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    stratum::LayerOptions o;
+    o.ordinates = 16;
+    const auto full = stratum::solve_layer(slab, top, bottom, o);
+    const SkinProbe ref = probe(full);
+    std::printf("\n## Layer solver: Fourier modes chosen by a tolerance\n\nM = 16 (at most K = 32 modes). The "
+                "request names the outputs and a tolerance; the solver stops after two consecutive modes whose "
+                "BRDF/BTDF coefficients are below it. Error: max relative difference from all 32 modes.\n\n");
+    std::printf("| outputs | tolerance | modes | r_s error | t_s error | solve (ms) |\n|---|---|---|---|---|---|\n");
+    using stratum::LayerOutput;
+    const struct {
+        const char* name;
+        LayerOutput outputs;
+    } kinds[] = {{"reflection", LayerOutput::surface_reflection | LayerOutput::subsurface_reflection},
+                 {"transmission", LayerOutput::transmission},
+                 {"all", LayerOutput::all}};
+    for (const auto& kind : kinds) {
+        for (double tol : {1e-1, 1e-2, 1e-3, 1e-4, 0.0}) {
+            stratum::LayerRequest<double> r;
+            r.outputs = kind.outputs;
+            r.tolerance = tol;
+            stratum::LayeredSurface<double> layer = stratum::solve_layer(slab, top, bottom, o, r);
+            const double t = median_ms([&] { layer = stratum::solve_layer(slab, top, bottom, o, r); }, 3);
+            const SkinProbe p = probe(layer);
+            const bool refl = stratum::includes(kind.outputs, LayerOutput::subsurface_reflection);
+            const bool trans = stratum::includes(kind.outputs, LayerOutput::transmission);
+            char er[32] = "-", et[32] = "-";
+            if (refl) std::snprintf(er, sizeof er, "%.1e", max_relative(p.brdf, ref.brdf, 4));
+            if (trans) std::snprintf(et, sizeof et, "%.1e", max_relative(p.btdf, ref.btdf, 4));
+            std::printf("| %s | %g | %d | %s | %s | %.1f |\n", kind.name, tol, layer.modes(), er, et, t);
+        }
+    }
+    stratum::LayerRequest<double> ambient;
+    ambient.outputs = LayerOutput::ambient;
+    double t_amb = median_ms([&] { (void)stratum::solve_layer(slab, top, bottom, o, ambient); }, 3);
+    std::printf("| ambient only | - | 1 | - | - | %.1f |\n", t_amb);
+}
+
+}  // namespace
+
+int main() {
+    std::printf("# stratum: accuracy against time\n\nGenerated by bench/accuracy_report.cpp "
+                "(`cmake --workflow --preset bench`, then `./build/bench/bench/stratum_accuracy_report`).\n");
+    stratum_accuracy::report_quadrature();
+    stratum_accuracy::report_henyey_greenstein();
+    stratum_accuracy::report_interface_operators();
+    layer_ordinates();
+    layer_tolerance();
+    stratum_accuracy::report_dipole();
+    return 0;
+}

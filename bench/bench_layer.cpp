@@ -1,0 +1,61 @@
+// The layer solver on Stam's skin layer (n 1 | 1.4 | 1, sigma 0.3 both sides, albedo 0.9, g 0.8, e^-tau 0.5):
+// the full request against the shortcuts a scene can ask for, and evaluation at true angles.
+#include <benchmark/benchmark.h>
+
+#include <stratum/layer.hpp>
+
+namespace {
+
+using Real = double;
+
+stratum::LayeredSurface<Real> skin(int ordinates, const stratum::LayerRequest<Real>& request = {}) {
+    const stratum::RoughDielectric<Real> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    stratum::LayerOptions options;
+    options.ordinates = ordinates;
+    return stratum::solve_layer(stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5), top, bottom, options, request);
+}
+
+// Full request: every output, K = 2M modes.
+void BM_layer_solve_full(benchmark::State& state) {
+    for (auto _ : state) benchmark::DoNotOptimize(skin(static_cast<int>(state.range(0))));
+}
+BENCHMARK(BM_layer_solve_full)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
+// Reflection only, modes chosen by a tolerance of 1e-3.
+void BM_layer_solve_reflection_tol1e3(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.outputs = stratum::LayerOutput::surface_reflection | stratum::LayerOutput::subsurface_reflection;
+    r.tolerance = 1e-3;
+    for (auto _ : state) benchmark::DoNotOptimize(skin(static_cast<int>(state.range(0)), r));
+}
+BENCHMARK(BM_layer_solve_reflection_tol1e3)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
+// Ambient term only: Fourier mode 0.
+void BM_layer_solve_ambient(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.outputs = stratum::LayerOutput::ambient;
+    for (auto _ : state) benchmark::DoNotOptimize(skin(static_cast<int>(state.range(0)), r));
+}
+BENCHMARK(BM_layer_solve_ambient)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
+// Evaluation at true angles: subsurface BRDF with the incidence computed on the fly, and with it precomputed
+// through LayerRequest::incidence (what a renderer with a fixed light direction does).
+void BM_layer_eval_subsurface_brdf(benchmark::State& state) {
+    const auto layer = skin(static_cast<int>(state.range(0)));
+    stratum::LayeredSurface<Real>::Workspace ws;
+    const auto wi = stratum::spherical_direction(0.8, 0.0), wo = stratum::spherical_direction(0.5, 2.0);
+    for (auto _ : state) benchmark::DoNotOptimize(layer.subsurface_brdf(wi, wo, ws));
+}
+BENCHMARK(BM_layer_eval_subsurface_brdf)->Arg(8)->Arg(16)->Arg(24)->Unit(benchmark::kMicrosecond);
+
+void BM_layer_eval_subsurface_brdf_cached_incidence(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.incidence = {0.8};
+    const auto layer = skin(static_cast<int>(state.range(0)), r);
+    stratum::LayeredSurface<Real>::Workspace ws;
+    const auto wi = stratum::spherical_direction(0.8, 0.0), wo = stratum::spherical_direction(0.5, 2.0);
+    for (auto _ : state) benchmark::DoNotOptimize(layer.subsurface_brdf(wi, wo, ws));
+}
+BENCHMARK(BM_layer_eval_subsurface_brdf_cached_incidence)->Arg(8)->Arg(16)->Arg(24)->Unit(benchmark::kMicrosecond);
+
+}  // namespace

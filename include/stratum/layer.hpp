@@ -1,0 +1,713 @@
+// stratum/layer.hpp -- a scattering layer bounded by dielectric interfaces, solved by the discrete-
+// ordinate method (Stam 2001, "An Illumination Model for a Skin Layer Bounded by Rough Surfaces"),
+// evaluated at arbitrary directions.
+//
+// Geometry. Medium 1 (index n1) above, the layer (n2) in the middle, medium 3 (n3) below. The top
+// boundary separates 1 | 2, the bottom one 2 | 3; each is a RoughDielectric, a SmoothDielectric or index
+// matched. Directions follow vec3.hpp: wi towards the light, wo towards the viewer, both pointing away
+// from the surface; light arrives from above (wi.z > 0).
+//
+// Method (physics-notes sections 5-6). Per Fourier mode k and on M half-range ordinates, every component
+// is a set of M x M operators mapping incoming to outgoing radiance coefficients (adding.hpp): the
+// interfaces' R_12, T_12, R_21, T_21 (interface_operators.hpp) and the bare slab's R, T (slab.hpp). With
+// S the reflection of everything below the top interface seen from inside the layer (slab + bottom
+// interface, by the adding equations), the field inside the layer driven by radiance coefficients c
+// transmitted through the top is
+//     a = (I - R_21 S)^{-1} c          (down-going, just below the top interface)
+//     b = S a                          (up-going, just below the top interface)
+//     e = (I - R_s R_23)^{-1} T_s a    (down-going, arriving at the bottom interface)
+// so per mode the solver keeps Q_b = S (I - R_21 S)^{-1} and Q_e = (I - R_s R_23)^{-1} T_s (I - R_21 S)^{-1}.
+// Only the internal field lives on ordinates. For a rough top the incident direction enters through
+// the top's transmission coefficients evaluated at the true mu_0 and the outgoing one through t_21 at the
+// true mu (no interpolation; physics-notes section 6):
+//     c_{k,m}   = (2 - delta_k0) / (2 pi) I^{t12}_k(mu_0 -> mu_m)
+//     f_s(wi, wo) = sum_k cos(k dphi) sum_m w_m mu_m I^{t21}_k(mu_m -> mu) (Q_b c_k)_m,
+// with dphi the azimuth between the incident and outgoing PROPAGATION directions (-wi and wo).
+// Both Gauss sums over the ordinates (the flux entering, sum_m w_m mu_m I^{t12}_0, and the exit weights) are
+// rescaled to their exact values, T_12(mu_0) and (n_out/n_in)^2 T(mu) by reciprocity, so that a lobe the
+// ordinates do not resolve neither creates nor loses energy; the interface operators are renormalized to
+// the hemispherical totals in the same way (LayerOptions::renormalization).
+// A specular (smooth or index-matched) boundary has no BTDF to carry the true angle: the beam refracted
+// to the internal cosine mu' is spread over the four nearest ordinates inside the escape cone with Lagrange
+// weights that conserve its flux (exact when mu' is an ordinate); leaving radiance is interpolated the same
+// way (4 points, ordinates inside the escape cone only). That interpolation is the documented approximation of this path;
+// tests/test_layer.cpp measures it. (The exact treatment, DISORT's analytic beam source with intensities at
+// user angles, is not done yet.)
+//
+// Units: BRDF/BTDF per steradian (cosine not included), albedo and transmittance as fractions of the
+// incident flux, ambient as reflected radiance per unit incident sky radiance.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "adding.hpp"
+#include "detail/linalg.hpp"
+#include "detail/validate.hpp"
+#include "henyey_greenstein.hpp"
+#include "interface.hpp"
+#include "interface_operators.hpp"
+#include "quadrature.hpp"
+#include "slab.hpp"
+#include "vec3.hpp"
+
+namespace stratum {
+
+/// The outputs a scene asks for; combine with |. The solver skips the work of the others.
+enum class LayerOutput : unsigned {
+    surface_reflection = 1u << 0,     ///< r_12: reflection by the top interface alone (needs no solve)
+    subsurface_reflection = 1u << 1,  ///< r_s: light that entered the layer and came back out of the top
+    transmission = 1u << 2,           ///< t_s: light leaving through the bottom
+    ambient = 1u << 3,                ///< r_a: subsurface reflection of a uniform sky (Fourier mode 0 only)
+    operators = 1u << 4,              ///< the whole layer's per-mode operators on the ordinates (for stacking)
+    all = (1u << 5) - 1,
+};
+constexpr LayerOutput operator|(LayerOutput a, LayerOutput b) noexcept {
+    return static_cast<LayerOutput>(static_cast<unsigned>(a) | static_cast<unsigned>(b));
+}
+constexpr bool includes(LayerOutput set, LayerOutput o) noexcept {
+    return (static_cast<unsigned>(set) & static_cast<unsigned>(o)) != 0;
+}
+
+/// Discretization knobs.
+struct LayerOptions {
+    int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), >= 1
+    int modes = 0;        ///< K azimuthal modes; 0 = 2M (as many as 2M Legendre moments support)
+    bool delta_m = true;  ///< delta-M scaling of the phase function with 2M moments (Wiscombe 1977)
+    /// Rough boundaries: rescale each operator column to the exact hemispherical totals (interface_operators.hpp).
+    Renormalization renormalization = Renormalization::hemispherical_totals;
+    /// Smooth boundaries: how the Snell-mapped transmission is put on the ordinates (interface_operators.hpp).
+    SpecularTransmission specular_transmission = SpecularTransmission::automatic;
+};
+
+/// What a scene needs (see LayerOutput); the solver computes nothing else.
+template <class Real = double>
+struct LayerRequest {
+    LayerOutput outputs = LayerOutput::all;
+    /// Incidence cosines mu_0 in (0, 1] at which brdf/btdf/albedo will be evaluated; their internal fields
+    /// are precomputed, so evaluation there skips the top interface's coefficients and the per-mode solve.
+    /// Other incidences still work (computed on the fly).
+    std::vector<Real> incidence;
+    /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
+    int max_modes = 0;
+    /// 0: everything exact to the discretization. > 0: (a) modes are solved in order and the loop stops
+    /// after two consecutive modes whose operators are below tolerance relative to mode 0; (b) a slab with
+    /// e^{-tau} < tolerance is solved as semi-infinite when transmission is not requested.
+    Real tolerance = 0;
+};
+
+/// A boundary of a layer: rough (Beckmann microfacets) or specular (smooth or index-matched).
+/// Converts implicitly from RoughDielectric and SmoothDielectric.
+template <class Real = double>
+class Boundary {
+public:
+    Boundary(const RoughDielectric<Real>& rough) : rough_(rough), smooth_(rough.eta_above(), rough.eta_below()) {}  // NOLINT
+    Boundary(const SmoothDielectric<Real>& smooth) : smooth_(smooth) {}                                            // NOLINT
+    /// Both sides of index eta: light crosses unchanged.
+    static Boundary index_matched(Real eta = Real(1)) { return Boundary(SmoothDielectric<Real>(eta, eta)); }
+
+    bool rough() const noexcept { return rough_.has_value() && !rough_->index_matched(); }
+    Real eta_above() const noexcept { return smooth_.eta_above(); }
+    Real eta_below() const noexcept { return smooth_.eta_below(); }
+    const std::optional<RoughDielectric<Real>>& rough_interface() const noexcept { return rough_; }
+    const SmoothDielectric<Real>& smooth_interface() const noexcept { return smooth_; }
+
+    InterfaceOperators<Real> operators(const Quadrature<Real>& q, int modes, const LayerOptions& o) const {
+        return rough_ ? InterfaceOperators<Real>(*rough_, q, modes, AzimuthalQuadrature<Real>(), o.renormalization)
+                      : InterfaceOperators<Real>(smooth_, q, modes, o.specular_transmission);
+    }
+    /// Directional-hemispherical transmittance for light arriving with cosine mu (> 0 from above).
+    Real transmittance(Real mu) const { return rough() ? rough_->transmittance(mu) : smooth_.transmittance(mu); }
+    /// Directional-hemispherical reflectance for light arriving with cosine mu (> 0 from above).
+    Real reflectance(Real mu) const { return rough() ? rough_->reflectance(mu) : smooth_.reflectance(mu); }
+
+private:
+    std::optional<RoughDielectric<Real>> rough_;
+    SmoothDielectric<Real> smooth_;  // the indices; the specular model when not rough
+};
+
+template <class Real>
+class LayeredSurface;
+
+namespace detail {
+
+/// T in a context where it is not deduced (so RoughDielectric converts to Boundary in solve_layer).
+template <class T>
+struct NonDeducedImpl {
+    using type = T;
+};
+template <class T>
+using NonDeduced = typename NonDeducedImpl<T>::type;
+
+template <class Real>
+ComponentOperators<Real> interface_component(const InterfaceOperators<Real>& ops, int k) {
+    ComponentOperators<Real> c;
+    c.size = static_cast<std::size_t>(ops.size());
+    const std::size_t n = c.size * c.size;
+    auto copy = [&](const FourierOperators<Real>& f) { return std::vector<Real>(f.mode(k), f.mode(k) + n); };
+    c.reflection_down = copy(ops.R12());
+    c.transmission_down = copy(ops.T12());
+    c.reflection_up = copy(ops.R21());
+    c.transmission_up = copy(ops.T21());
+    return c;
+}
+
+/// The slab's per-mode operators, with delta-M scaling and the Henyey-Greenstein phase matrices.
+template <class Real>
+struct SlabModes {
+    Slab<Real> slab;  // possibly delta-M scaled
+    PhaseFourierMatrices<Real> phase;
+};
+
+template <class Real>
+SlabModes<Real> prepare_slab(const Slab<Real>& s, const Quadrature<Real>& q, int modes, bool delta_m, Real tau_override) {
+    const int moments = 2 * static_cast<int>(q.size());
+    const Real tau = tau_override;
+    if (delta_m && s.g() != Real(0)) {
+        const DeltaMScaled<Real> dm = delta_m_scaling(s.albedo(), tau, s.g(), moments);
+        // 1 - Omega' = (1 - Omega) / (1 - f Omega), with 1 - f Omega = (1 - f) + f (1 - Omega): no cancellation.
+        const Real one_minus_f_omega = (Real(1) - dm.f) + dm.f * s.one_minus_albedo();
+        const Slab<Real> scaled = Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(),
+                                                                    one_minus_f_omega * tau);
+        return {scaled, phase_fourier_matrices(dm.moments, q.nodes, modes)};
+    }
+    const HenyeyGreenstein<Real> hg(s.g());
+    return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
+            phase_fourier_matrices(hg.legendre_moments(moments), q.nodes, modes)};
+}
+
+/// A function of mu in (0, 1] tabulated at N + 1 points equispaced in t = sqrt(mu) and interpolated by cubic
+/// Lagrange polynomials in t on the 4 nearest points: the hemispherical transmittance of a rough boundary,
+/// which costs a 2-D integral per value and changes fastest near grazing (its limit at mu -> 0+ differs from
+/// its value at mu = 0, which is the point t = 0 is given instead). Error: tests/test_layer.cpp measures it.
+template <class Real>
+struct MuTable {
+    std::vector<Real> values;  // f((j / N)^2), j = 0..N (j = 0: the limit mu -> 0+)
+    template <class F>
+    void build(int intervals, F f) {
+        values.resize(static_cast<std::size_t>(intervals) + 1);
+        for (int j = 0; j <= intervals; ++j) {
+            const Real t = Real(j) / Real(intervals);
+            values[static_cast<std::size_t>(j)] = f(j == 0 ? Real(1e-12) : t * t);
+        }
+    }
+    Real operator()(Real mu) const noexcept {
+        const int n = static_cast<int>(values.size()) - 1;
+        const Real x = std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))) * Real(n);
+        const int first = std::min(std::max(static_cast<int>(x) - 1, 0), n - 3);
+        Real sum = 0;
+        for (int a = 0; a < 4; ++a) {
+            Real l = 1;
+            for (int b = 0; b < 4; ++b)
+                if (b != a) l *= (x - Real(first + b)) / Real(a - b);
+            sum += l * values[static_cast<std::size_t>(first + a)];
+        }
+        return sum;
+    }
+};
+
+/// Largest entry of a slab's diffuse operators: R, and T without its unscattered diagonal e^{-tau/mu}.
+template <class Real>
+Real diffuse_size(const ComponentOperators<Real>& c, const std::vector<Real>& mu, Real tau) noexcept {
+    const std::size_t m = c.size;
+    Real x = 0;
+    for (std::size_t i = 0; i < m; ++i)
+        for (std::size_t j = 0; j < m; ++j) {
+            const Real direct = (i == j && std::isfinite(tau)) ? std::exp(-tau / mu[i]) : Real(0);
+            x = std::fmax(x, std::fmax(std::fabs(c.reflection_down[i * m + j]),
+                                       std::fabs(c.transmission_down[i * m + j] - direct)));
+        }
+    return x;
+}
+
+}  // namespace detail
+
+/// The solved layer: evaluate its BRDF, BTDF, albedo, transmittance and ambient term at any direction.
+/// Built by solve_layer / solve_stack. Evaluation functions take an optional Workspace so that repeated
+/// calls allocate nothing; they are const and thread-safe with one Workspace per thread.
+template <class Real = double>
+class LayeredSurface {
+public:
+    /// Scratch memory for evaluation (sized on first use).
+    struct Workspace {
+        std::vector<Real> in, out, c, field;
+    };
+
+    int ordinates() const noexcept { return static_cast<int>(q_.size()); }
+    /// The number of Fourier modes actually solved (after the request's tolerance and cap).
+    int modes() const noexcept { return modes_; }
+    const Quadrature<Real>& quadrature() const noexcept { return q_; }
+    LayerOutput outputs() const noexcept { return outputs_; }
+    /// Per-mode operators of the whole layer on the ordinates, light arriving from above or below
+    /// (empty unless LayerOutput::operators was requested). Compose with add_components().
+    const std::vector<ComponentOperators<Real>>& mode_operators() const noexcept { return whole_; }
+
+    /// Total BRDF above the layer, r_12 + r_s (the specular reflection of a smooth top is a delta and
+    /// is not included: use the top's SmoothDielectric for it).
+    Real brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
+        const Real surface = (top_.rough() && includes(outputs_, LayerOutput::surface_reflection))
+                                 ? top_.rough_interface()->brdf(wi, wo) : Real(0);
+        return surface + subsurface_brdf(wi, wo, ws);
+    }
+    Real brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return brdf(wi, wo, ws); }
+
+    /// r_s: light refracted into the layer, scattered, and refracted back out of the top (0 if not requested).
+    Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
+        if (!includes(outputs_, LayerOutput::subsurface_reflection) || !(wi.z > 0) || !(wo.z > 0)) return Real(0);
+        return exit_sum(wi, wo, *top_ops_, top_, false, field(wi.z, false, ws), ws);
+    }
+    Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return subsurface_brdf(wi, wo, ws); }
+
+    /// t_s: BTDF from above (wi.z > 0) to below (wo.z < 0) through the whole layer, including the
+    /// unscattered beam's contribution only as far as the ordinates carry it (0 if not requested).
+    Real btdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
+        if (!includes(outputs_, LayerOutput::transmission) || !(wi.z > 0) || !(wo.z < 0)) return Real(0);
+        return exit_sum(wi, wo, *bottom_ops_, bottom_, true, field(wi.z, true, ws), ws);
+    }
+    Real btdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return btdf(wi, wo, ws); }
+
+    /// Directional-hemispherical reflectance for incidence cosine mu_i in (0, 1]: {surface, subsurface}.
+    struct Albedo {
+        Real surface, subsurface;
+        Real total() const noexcept { return surface + subsurface; }
+    };
+    Albedo albedo(Real mu_i) const {
+        Workspace ws;
+        Albedo a{top_.reflectance(mu_i), Real(0)};
+        if (includes(outputs_, LayerOutput::subsurface_reflection))
+            a.subsurface = std::fmax(Real(0), flux_out(field(mu_i, false, ws), exit_top_));  // >= 0 up to rounding
+        return a;
+    }
+
+    /// Fraction of the incident flux (cosine mu_i from above) leaving through the bottom.
+    Real transmittance(Real mu_i) const {
+        if (!includes(outputs_, LayerOutput::transmission)) return Real(0);
+        Workspace ws;
+        return std::fmax(Real(0), flux_out(field(mu_i, true, ws), exit_bottom_));  // >= 0 up to rounding
+    }
+
+    /// r_a(wo): subsurface radiance leaving towards wo (wo.z > 0) under a uniform sky of unit radiance
+    /// (Stam's ambient term; the top's own reflection of the sky is its reflectance(wo.z) by reciprocity).
+    Real ambient(Vec3<Real> wo, Workspace& ws) const {
+        if (!includes(outputs_, LayerOutput::ambient) || !(wo.z > 0)) return Real(0);
+        const std::size_t m = q_.size();
+        ws.c.assign(m, Real(0));
+        for (std::size_t i = 0; i < m; ++i) ws.c[i] = ambient_field_[i];
+        return exit_value(wo.z, *top_ops_, top_, false, 0, ws.c.data(), ws);
+    }
+    Real ambient(Vec3<Real> wo) const { Workspace ws; return ambient(wo, ws); }
+
+    /// The solver; see solve_stack (the documented entry point).
+    static LayeredSurface solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                                const LayerOptions& options, const LayerRequest<Real>& request);
+
+private:
+    LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
+
+    static constexpr Real pi() noexcept { return Real(3.141592653589793238462643383279502884L); }
+
+    // The internal field (K blocks of M) for incidence mu_i: Q_b c_k (reflection) or Q_e c_k (transmission).
+    const Real* field(Real mu_i, bool transmitted, Workspace& ws) const {
+        const std::vector<std::vector<Real>>& cache = transmitted ? cached_e_ : cached_b_;
+        for (std::size_t j = 0; j < incidence_.size(); ++j)
+            if (incidence_[j] == mu_i && !cache[j].empty()) return cache[j].data();
+        entry(mu_i, ws);
+        const std::size_t m = q_.size();
+        ws.field.assign(static_cast<std::size_t>(modes_) * m, Real(0));
+        const std::vector<detail::Matrix<Real>>& q = transmitted ? qe_ : qb_;
+        for (int k = 0; k < modes_; ++k) {
+            const detail::Matrix<Real>& a = q[static_cast<std::size_t>(k)];
+            const Real* c = ws.c.data() + static_cast<std::size_t>(k) * m;
+            Real* f = ws.field.data() + static_cast<std::size_t>(k) * m;
+            for (std::size_t n = 0; n < m; ++n) {
+                Real s = 0;
+                for (std::size_t i = 0; i < m; ++i) s += a(n, i) * c[i];
+                f[n] = s;
+            }
+        }
+        return ws.field.data();
+    }
+
+    // c_{k,m}: mode-k radiance coefficients just below the top for a unit-irradiance beam at cosine mu_i.
+    // Rough top: c_{k,m} = (2 - delta_k0)/(2 pi) I^{t12}_k(mu_i -> mu_m), rescaled so that the flux it carries,
+    // 2 pi sum_m w_m mu_m c_{0,m} (a Gauss sum over a lobe the ordinates may not resolve), equals the exact
+    // transmittance T_12(mu_i). Specular top (or a lobe that falls between the ordinates): the refracted
+    // beam at the Snell cosine, spread over the four nearest ordinates inside the top's escape cone with
+    // Lagrange weights (they sum to 1, so the flux is conserved; exact when the Snell cosine is an ordinate;
+    // the photon Monte Carlo showed them clearly better than a non-negative linear spread, which cannot
+    // reach mu' = 1 beyond the last ordinate).
+    void entry(Real mu_i, Workspace& ws) const {
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
+        ws.c.assign(kk * m, Real(0));
+        const Real flux = top_.rough() ? std::fmax(Real(0), top_in_(mu_i)) : top_.transmittance(mu_i);
+        if (!(flux > 0)) return;
+        Real specular_share = 1;
+        if (top_.rough()) {
+            ws.in.resize(static_cast<std::size_t>(top_ops_->modes()));
+            Real gauss = 0;
+            for (std::size_t i = 0; i < m; ++i) {
+                top_ops_->t12(mu_i, q_.nodes[i], ws.in.data());
+                gauss += q_.weights[i] * q_.nodes[i] * ws.in[0];
+                for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = ws.in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
+            }
+            // Blend: alpha = min(r, 1/r), r = gauss / flux, of the rescaled lobe (alpha flux / gauss = min(1,
+            // (flux/gauss)^2)) and 1 - alpha of the specular spread: both carry the exact flux, the lobe wins
+            // where the ordinates resolve it, and the result is continuous in every parameter.
+            const Real r = gauss / flux;
+            const Real lobe = r >= 1 ? Real(1) / (r * r) : Real(1);
+            for (Real& x : ws.c) x *= lobe;
+            specular_share = r >= 1 ? Real(1) - Real(1) / r : Real(1) - r;
+            if (!(specular_share > 0)) return;
+        }
+        const Real mu_t = std::fabs(top_.smooth_interface().transmitted_cosine(mu_i));
+        if (!(mu_t > 0)) return;
+        lagrange(mu_t, critical_cosine(top_, false), 4, ws);
+        for (std::size_t i = 0; i < m; ++i) {
+            const Real base = specular_share * flux * ws.in[i] / (q_.weights[i] * q_.nodes[i]);
+            for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] += base * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
+        }
+    }
+
+    // ws.in[0..M-1] = weights of p-point Lagrange interpolation at x from the ordinates >= lo nearest to x (lo:
+    // the critical cosine of the boundary the light crosses; ordinates below it are totally reflected and hold
+    // trapped light that must not leak into the interpolation). The weights sum to 1.
+    void lagrange(Real x, Real lo, int p, Workspace& ws) const {
+        const int m = static_cast<int>(q_.size());
+        ws.in.assign(q_.size(), Real(0));
+        int first_valid = 0;
+        while (first_valid < m - 1 && q_.nodes[static_cast<std::size_t>(first_valid)] < lo) ++first_valid;
+        const int count = m - first_valid;
+        p = std::min(p, count);
+        int j = first_valid;  // first node > x
+        while (j < m && q_.nodes[static_cast<std::size_t>(j)] <= x) ++j;
+        int first = std::max(first_valid, std::min(j - p / 2, m - p));
+        auto node = [&](int i) { return q_.nodes[static_cast<std::size_t>(i)]; };
+        for (int a = 0; a < p; ++a) {
+            Real l = 1;
+            for (int b = 0; b < p; ++b)
+                if (b != a) l *= (x - node(first + b)) / (node(first + a) - node(first + b));
+            ws.in[static_cast<std::size_t>(first + a)] = l;
+        }
+    }
+
+    // The critical cosine inside the layer for light leaving through `boundary` (0 if none).
+    static Real critical_cosine(const Boundary<Real>& boundary, bool bottom) noexcept {
+        const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
+        const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
+        if (!(n_out < n_in)) return Real(0);
+        const Real r = n_out / n_in;
+        return std::sqrt((Real(1) - r) * (Real(1) + r));
+    }
+
+    // Radiance leaving through `boundary` towards wo from the internal field, summed over modes.
+    Real exit_sum(Vec3<Real> wi, Vec3<Real> wo, const InterfaceOperators<Real>& ops, const Boundary<Real>& boundary,
+                  bool bottom, const Real* fld, Workspace& ws) const {
+        // Azimuth between the propagation directions -wi and wo: cos(dphi) = -(wi_t . wo_t) / (|wi_t| |wo_t|).
+        const Real st = std::sqrt((wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y));
+        const Real cos_dphi = st > 0 ? -(wi.x * wo.x + wi.y * wo.y) / st : Real(1);
+        const Real mu_o = std::fabs(wo.z);
+        exit_weights(mu_o, ops, boundary, bottom, ws);
+        const std::size_t m = q_.size();
+        Real sum = 0, c_prev = 1, c_k = 1;  // cos(k dphi) by the Chebyshev recurrence
+        for (int k = 0; k < modes_; ++k) {
+            const Real* f = fld + static_cast<std::size_t>(k) * m;
+            Real s = 0;
+            for (std::size_t i = 0; i < m; ++i) s += ws.out[static_cast<std::size_t>(k) * m + i] * f[i];
+            sum += c_k * s;
+            const Real c_next = k == 0 ? cos_dphi : 2 * cos_dphi * c_k - c_prev;
+            c_prev = c_k;
+            c_k = c_next;
+        }
+        return std::fmax(sum, Real(0));
+    }
+
+    // The value of one mode at outgoing cosine mu_o (used for the mode-0 ambient term).
+    Real exit_value(Real mu_o, const InterfaceOperators<Real>& ops, const Boundary<Real>& boundary, bool bottom, int k,
+                    const Real* fld, Workspace& ws) const {
+        exit_weights(mu_o, ops, boundary, bottom, ws);
+        const std::size_t m = q_.size();
+        Real s = 0;
+        for (std::size_t i = 0; i < m; ++i) s += ws.out[static_cast<std::size_t>(k) * m + i] * fld[i];
+        return std::fmax(s, Real(0));
+    }
+
+    // ws.out[k M + m]: weight of internal ordinate m, mode k, in the radiance leaving at mu_o.
+    // Rough: w_m mu_m I^{t}_k(mu_m -> mu_o), rescaled so that the weights of mode 0 sum to their exact value:
+    // by reciprocity (t_ij / n_j^2 = t_ji / n_i^2 with the arguments swapped), sum_m w_m mu_m I^t_0(mu_m -> mu_o)
+    // -> (n_out / n_in)^2 T(mu_o), with T the transmittance of light arriving from outside at mu_o.
+    // Specular: (radiance transmittance) x local Lagrange weights at the internal Snell cosine mu'.
+    void exit_weights(Real mu_o, const InterfaceOperators<Real>& ops, const Boundary<Real>& boundary, bool bottom,
+                      Workspace& ws) const {
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
+        ws.out.assign(kk * m, Real(0));
+        const SmoothDielectric<Real>& s = boundary.smooth_interface();
+        const Real outside = bottom ? -mu_o : mu_o;  // cosine of the outgoing ray seen from its own side
+        const Real mu_t = std::fabs(s.transmitted_cosine(outside));  // the internal direction, ray reversed
+        Real specular = mu_t > 0 ? s.radiance_transmittance(bottom ? mu_t : -mu_t) : Real(0);
+        if (boundary.rough()) {
+            const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
+            const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
+            const Real t_outside = std::fmax(Real(0), bottom ? bottom_in_(mu_o) : top_in_(mu_o));  // = transmittance(outside)
+            const Real expected = (n_out / n_in) * (n_out / n_in) * t_outside;
+            if (!(expected > 0)) return;
+            // The reciprocity behind `expected` needs a reciprocal BTDF: with masking-only shadowing the exit
+            // weights are used as they are (tests/test_layer_monte_carlo.cpp measured both against a photon
+            // Monte Carlo).
+            const bool reciprocal = boundary.rough_interface()->shadowing() != Shadowing::masking_only;
+            ws.in.resize(static_cast<std::size_t>(ops.modes()));
+            Real gauss = 0;
+            for (std::size_t i = 0; i < m; ++i) {
+                if (bottom) ops.t12(q_.nodes[i], mu_o, ws.in.data());  // layer (above the bottom) -> medium 3
+                else ops.t21(q_.nodes[i], mu_o, ws.in.data());         // layer (below the top) -> medium 1
+                const Real wm = q_.weights[i] * q_.nodes[i];
+                gauss += wm * ws.in[0];
+                for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] = wm * ws.in[k];
+            }
+            // The same continuous blend as in entry(): the rescaled lobe where the ordinates resolve it,
+            // otherwise the interpolated internal radiance at the Snell direction times `expected`.
+            if (!reciprocal) return;
+            const Real r = gauss / expected;
+            const Real lobe = r >= 1 ? Real(1) / (r * r) : Real(1);
+            for (Real& x : ws.out) x *= lobe;
+            specular = expected * (r >= 1 ? Real(1) - Real(1) / r : Real(1) - r);
+        }
+        if (!(specular > 0) || !(mu_t > 0)) return;
+        lagrange(mu_t, critical_cosine(boundary, bottom), 4, ws);
+        for (std::size_t i = 0; i < m; ++i)
+            for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] += specular * ws.in[i];
+    }
+
+    // Flux leaving through a boundary from the mode-0 internal field: 2 pi sum_n w_n mu_n f_n tau(mu_n).
+    Real flux_out(const Real* fld, const std::vector<Real>& exit) const {
+        Real s = 0;
+        for (std::size_t n = 0; n < q_.size(); ++n) s += q_.weights[n] * q_.nodes[n] * fld[n] * exit[n];
+        return 2 * pi() * s;
+    }
+
+    Boundary<Real> top_, bottom_;
+    std::optional<InterfaceOperators<Real>> top_ops_, bottom_ops_;  // empty when nothing was solved
+    Quadrature<Real> q_;
+    int modes_ = 0;
+    LayerOutput outputs_ = LayerOutput::all;
+    std::vector<detail::Matrix<Real>> qb_, qe_;           // per mode
+    std::vector<ComponentOperators<Real>> whole_;         // per mode, if requested
+    std::vector<Real> incidence_;
+    std::vector<std::vector<Real>> cached_b_, cached_e_;  // per requested incidence: K blocks of M
+    std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
+    detail::MuTable<Real> top_in_, bottom_in_;            // rough boundaries: transmittance of light arriving from outside
+    std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
+};
+
+/// Solves a stack: `top` boundary, then slabs[0], interior[0], slabs[1], ..., slabs[N-1], then `bottom`
+/// (interior.size() == slabs.size() - 1). Adjacent indices must agree (top.eta_below() ==
+/// interior[0].eta_above(), ...). Throws std::invalid_argument for inconsistent input or bad options.
+template <class Real>
+LayeredSurface<Real> solve_stack(const detail::NonDeduced<Boundary<Real>>& top, const std::vector<Slab<Real>>& slabs,
+                                 const std::vector<Boundary<Real>>& interior,
+                                 const detail::NonDeduced<Boundary<Real>>& bottom, const LayerOptions& options = {},
+                                 const detail::NonDeduced<LayerRequest<Real>>& request = {}) {
+    return LayeredSurface<Real>::solve(top, slabs, interior, bottom, options, request);
+}
+
+template <class Real>
+LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                                 const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                                                 const LayerOptions& options, const LayerRequest<Real>& request) {
+    detail::require_count("options.ordinates", options.ordinates, 1);
+    detail::require_count("options.modes", options.modes, 0);
+    detail::require_count("request.max_modes", request.max_modes, 0);
+    detail::require_count("slabs.size()", static_cast<int>(slabs.size()), 1);
+    if (!(request.tolerance >= 0 && request.tolerance < 1))
+        detail::throw_out_of_range("request.tolerance", request.tolerance, "[0, 1)");
+    if (interior.size() + 1 != slabs.size())
+        throw std::invalid_argument("stratum: solve_stack needs interior.size() == slabs.size() - 1, got " +
+                                    std::to_string(interior.size()) + " and " + std::to_string(slabs.size()));
+    {
+        Real above = top.eta_below();
+        for (std::size_t i = 0; i <= interior.size(); ++i) {
+            const Real below = i < interior.size() ? interior[i].eta_above() : bottom.eta_above();
+            if (below != above)
+                throw std::invalid_argument("stratum: boundary indices disagree around slab " + std::to_string(i) + ": " +
+                                            detail::format_value(above) + " above it, " + detail::format_value(below) +
+                                            " below it");
+            if (i < interior.size()) above = interior[i].eta_below();
+        }
+    }
+    for (std::size_t j = 0; j < request.incidence.size(); ++j)
+        detail::require_closed("request.incidence[j]", request.incidence[j], std::nextafter(Real(0), Real(1)), Real(1));
+
+    LayeredSurface s(top, bottom);
+    s.outputs_ = request.outputs;
+    s.q_ = gauss_legendre_half<Real>(options.ordinates);
+    const Quadrature<Real>& q = s.q_;
+    const std::size_t m = q.size();
+    const bool want_r = includes(request.outputs, LayerOutput::subsurface_reflection);
+    const bool want_t = includes(request.outputs, LayerOutput::transmission);
+    const bool want_a = includes(request.outputs, LayerOutput::ambient);
+    const bool want_ops = includes(request.outputs, LayerOutput::operators);
+    int modes = options.modes > 0 ? options.modes : 2 * options.ordinates;
+    if (request.max_modes > 0) modes = std::min(modes, request.max_modes);
+    if (!want_r && !want_t && !want_ops) modes = want_a ? 1 : 0;  // ambient: mode 0 only; surface only: no solve
+    s.incidence_ = request.incidence;
+    if (modes == 0) {
+        s.modes_ = 0;
+        return s;
+    }
+
+    s.top_ops_.emplace(top.operators(q, modes, options));
+    s.bottom_ops_.emplace(bottom.operators(q, modes, options));
+    std::vector<InterfaceOperators<Real>> interior_ops;
+    for (const Boundary<Real>& b : interior) interior_ops.push_back(b.operators(q, modes, options));
+    std::vector<detail::SlabModes<Real>> prepared;
+    for (const Slab<Real>& slab : slabs) {
+        prepared.push_back(detail::prepare_slab(slab, q, modes, options.delta_m, slab.optical_thickness()));
+        detail::SlabModes<Real>& p = prepared.back();
+        // Semi-infinite shortcut: the diffuse field decays into the slab no faster than e^{-lambda_min tau}
+        // (lambda_min: the smallest mode-0 eigenvalue), which is slower than the beam's e^{-tau}; so the
+        // criterion is e^{-lambda_min tau} < tolerance, not e^{-tau} < tolerance.
+        const Real tau = p.slab.optical_thickness();
+        if (request.tolerance > 0 && !want_t && !want_ops && slabs.size() == 1 && std::isfinite(tau) &&
+            p.slab.one_minus_albedo() > 0) {
+            const auto es = detail::slab_eigensystem(p.slab.one_minus_albedo(), q.nodes, q.weights, p.phase.same_k(0),
+                                                     p.phase.opposite_k(0), 0);
+            Real lambda_min = std::numeric_limits<Real>::infinity();
+            for (Real l : es.lambda) lambda_min = std::fmin(lambda_min, l);
+            if (std::exp(-lambda_min * tau) < request.tolerance)
+                p.slab = Slab<Real>::from_one_minus_albedo(p.slab.one_minus_albedo(), p.slab.g(),
+                                                           std::numeric_limits<Real>::infinity());
+        }
+    }
+    // The slab modes, with an inadmissible truncated phase function reported as a parameter problem.
+    auto slab_mode = [&](const detail::SlabModes<Real>& p, int k) {
+        try {
+            return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k));
+        } catch (const std::domain_error&) {
+            throw std::invalid_argument(
+                "stratum: g = " + detail::format_value(p.slab.g()) + " cannot be represented by its " +
+                std::to_string(2 * m) + "-moment Legendre expansion on " + std::to_string(m) +
+                " ordinates (the discretized phase function is not admissible in Fourier mode " + std::to_string(k) +
+                "); enable options.delta_m or use more ordinates");
+        }
+    };
+    // Rough boundaries: tables of the transmittance of light arriving from outside (entry flux, exit weights).
+    constexpr int table_intervals = 64;
+    if (top.rough()) s.top_in_.build(table_intervals, [&](Real mu) { return top.transmittance(mu); });
+    if (bottom.rough() && want_t) s.bottom_in_.build(table_intervals, [&](Real mu) { return bottom.transmittance(-mu); });
+    // Hemispherical transmittance out of the layer at each ordinate (for albedo/transmittance fluxes).
+    s.exit_top_.resize(m);
+    s.exit_bottom_.resize(m);
+    for (std::size_t i = 0; i < m; ++i) {
+        s.exit_top_[i] = top.transmittance(-q.nodes[i]);
+        s.exit_bottom_[i] = bottom.transmittance(q.nodes[i]);
+    }
+
+    using detail::Matrix;
+    bool any_rough = top.rough() || bottom.rough();
+    for (const Boundary<Real>& b : interior) any_rough = any_rough || b.rough();
+    Real norm0 = 0;
+    int below_tolerance = 0;
+    int solved = 0;
+    for (int k = 0; k < modes; ++k) {
+        // middle = slabs and interior interfaces; lower = middle + bottom interface.
+        ComponentOperators<Real> middle = slab_mode(prepared[0], k);
+        Real slab_size = detail::diffuse_size(middle, q.nodes, prepared[0].slab.optical_thickness());
+        for (std::size_t i = 0; i < interior.size(); ++i) {
+            middle = add_components(middle, detail::interface_component(interior_ops[i], k));
+            const ComponentOperators<Real> next = slab_mode(prepared[i + 1], k);
+            slab_size = std::fmax(slab_size, detail::diffuse_size(next, q.nodes, prepared[i + 1].slab.optical_thickness()));
+            middle = add_components(middle, next);
+        }
+        const ComponentOperators<Real> bottom_c = detail::interface_component(*s.bottom_ops_, k);
+        const ComponentOperators<Real> lower = add_components(middle, bottom_c);
+        const Matrix<Real> S = detail::as_matrix(m, lower.reflection_down);
+        const Matrix<Real> r21 = detail::as_matrix(m, std::vector<Real>(s.top_ops_->R21().mode(k), s.top_ops_->R21().mode(k) + m * m));
+        // A = (I - R21 S)^{-1};  Q_b = S A;  Q_e = (I - R_mid_up R23)^{-1} T_mid_down A.
+        const detail::LU<Real> lu_a = detail::lu_factor(detail::one_minus_product(r21, S));
+        Matrix<Real> qb = S;  // Q_b = S A = (I - S R21)^{-1} S, solved from the right via the transpose form
+        {
+            // S A: solve A^T-free form: (I - R21 S) X = I gives A; then Q_b = S A.
+            Matrix<Real> a = Matrix<Real>::identity(m);
+            detail::lu_solve(lu_a, a);
+            qb = detail::multiply(S, a);
+            if (want_t) {
+                const Matrix<Real> r_mid_up = detail::as_matrix(m, middle.reflection_up);
+                const Matrix<Real> r23 = detail::as_matrix(m, bottom_c.reflection_down);
+                Matrix<Real> x = detail::multiply(detail::as_matrix(m, middle.transmission_down), a);
+                detail::lu_solve(detail::lu_factor(detail::one_minus_product(r_mid_up, r23)), x);
+                s.qe_.push_back(std::move(x));
+            }
+        }
+        if (want_ops) s.whole_.push_back(add_components(detail::interface_component(*s.top_ops_, k), lower));
+        s.qb_.push_back(std::move(qb));
+        solved = k + 1;
+        // Adaptive mode count: mode k is negligible when the BRDF/BTDF Fourier coefficients it adds at the
+        // ordinate pairs, (2 - delta_k0)/(2 pi) (T21 Q_b T12)_nj / (w_j mu_j) (and T23 Q_e T12), are below
+        // tolerance relative to the largest mode-0 coefficient. Through specular boundaries only, the
+        // unscattered beam is a delta that no number of modes represents: there the slabs' diffuse operators
+        // are measured instead. Stop after two consecutive negligible modes.
+        if (request.tolerance > 0) {
+            Real size_k = 0;
+            if (any_rough) {
+                const Matrix<Real> t12 = detail::as_matrix(m, std::vector<Real>(s.top_ops_->T12().mode(k), s.top_ops_->T12().mode(k) + m * m));
+                auto coefficient_size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner) {
+                    const Matrix<Real> x = detail::multiply(exit, detail::multiply(inner, t12));
+                    Real big = 0;
+                    for (std::size_t n = 0; n < m; ++n)
+                        for (std::size_t j = 0; j < m; ++j)
+                            big = std::fmax(big, std::fabs(x(n, j)) / (q.weights[j] * q.nodes[j]));
+                    return big * (k == 0 ? Real(1) : Real(2));
+                };
+                if (want_r || want_a)
+                    size_k = coefficient_size(detail::as_matrix(m, std::vector<Real>(s.top_ops_->T21().mode(k), s.top_ops_->T21().mode(k) + m * m)), s.qb_.back());
+                if (want_t)
+                    size_k = std::fmax(size_k, coefficient_size(detail::as_matrix(m, bottom_c.transmission_down), s.qe_.back()));
+            } else {
+                size_k = slab_size;
+            }
+            if (k == 0) norm0 = size_k;
+            below_tolerance = (k > 0 && size_k <= request.tolerance * norm0) ? below_tolerance + 1 : 0;
+            if (below_tolerance == 2) break;
+        }
+    }
+    s.modes_ = solved;
+
+    if (want_a) {
+        // Uniform unit sky: radiance transmitted to internal ordinate m is (n2/n1)^2 tau_21(mu_m) by
+        // reciprocity of the top's BTDF (t_12 / n_2^2 = t_21 / n_1^2 with arguments swapped).
+        const Real ratio = top.eta_below() / top.eta_above();
+        std::vector<Real> c(m);
+        for (std::size_t i = 0; i < m; ++i) c[i] = ratio * ratio * s.exit_top_[i];
+        s.ambient_field_.assign(m, Real(0));
+        for (std::size_t n = 0; n < m; ++n)
+            for (std::size_t i = 0; i < m; ++i) s.ambient_field_[n] += s.qb_[0](n, i) * c[i];
+    }
+    // Precompute the fields of the requested incidences.
+    Workspace ws;
+    s.cached_b_.assign(s.incidence_.size(), {});
+    s.cached_e_.assign(s.incidence_.size(), {});
+    for (std::size_t j = 0; j < s.incidence_.size(); ++j) {
+        if (want_r) {
+            const Real* f = s.field(s.incidence_[j], false, ws);
+            s.cached_b_[j].assign(f, f + static_cast<std::size_t>(s.modes_) * m);
+        }
+        if (want_t) {
+            const Real* f = s.field(s.incidence_[j], true, ws);
+            s.cached_e_[j].assign(f, f + static_cast<std::size_t>(s.modes_) * m);
+        }
+    }
+    return s;
+}
+
+/// Solves one layer: `slab` between `top` (media 1 | 2) and `bottom` (2 | 3). See solve_stack.
+template <class Real>
+LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const detail::NonDeduced<Boundary<Real>>& top,
+                                 const detail::NonDeduced<Boundary<Real>>& bottom, const LayerOptions& options = {},
+                                 const detail::NonDeduced<LayerRequest<Real>>& request = {}) {
+    return solve_stack(top, std::vector<Slab<Real>>{slab}, std::vector<Boundary<Real>>{}, bottom, options, request);
+}
+
+}  // namespace stratum
