@@ -248,6 +248,15 @@ TEST_CASE("smooth boundaries (1 | 1.4 | 1): albedo and transmittance agree with 
     compare_fluxes("smooth", layer, {allow_rough_16, allow_rough_32}, 1400);
 }
 
+// The same smooth layer with the interpolation error bounded rather than excluded: the issue asks that the
+// documented interpolation's error be measured. At M = 16 and 32 the worst measured deviations are 0.0092
+// (transmittance) and 0.0030 (subsurface albedo), with 2e6 photons (SE 0.0003): the bound is 0.012, the measured
+// worst case plus 4 SE. (It is erratic in M -- see above -- so the bound holds for these M only.)
+TEST_CASE("smooth boundaries (1 | 1.4 | 1): the beam interpolation error stays within its measured bound") {
+    const mc_layer::Layer layer{MB::specular(1, 1.4), MB::specular(1.4, 1), 0.9, 0.8, ln2};
+    compare_fluxes("smooth, bounded", layer, {0.012, 0.012}, 1400);
+}
+
 TEST_CASE("Stam's skin layer: the angular distribution of reflected and transmitted light agrees with the Monte Carlo") {
     const mc_layer::Layer skin{MB::gaussian(0.3, 1, 1.4), MB::gaussian(0.3, 1.4, 1), 0.9, 0.8, ln2};
     const int mu_bins = 4, phi_bins = 3;
