@@ -26,7 +26,6 @@ using stratum::solve_stack;
 
 namespace {
 
-const double pi = 3.14159265358979323846;
 
 LayerOptions with_ordinates(int m, int modes = 0, bool delta_m = true) {
     LayerOptions o;

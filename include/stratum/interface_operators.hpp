@@ -461,10 +461,11 @@ public:
     /// Shadowing::masking_only; index matching: identity / zero, exactly).
     /// Cost ~2 M^2 x (phi samples) x (K + BSDF evaluation).
     /// renormalization = hemispherical_totals scales every column (all modes alike) so that its flux equals
-    /// RoughDielectric::albedo at that ordinate; a column that captured less than half or more than twice
-    /// that total (its lobe passes between the ordinates) is replaced by the specular column carrying the
-    /// total to the mirror/Snell image, split linearly between the two ordinates around it (the same in
-    /// every mode: a delta in phi). Energy then holds per incident ordinate for any lobe width, and as
+    /// RoughDielectric::albedo at that ordinate, blended with the specular column carrying the total to the
+    /// mirror/Snell image (split linearly between the two ordinates around it; the same in every mode: a
+    /// delta in phi) by the share 1 - min(r, 1/r), r = captured flux / total: a resolved lobe (r ~ 1) is kept,
+    /// one that passes between the ordinates (r -> 0 or large) becomes specular, continuously in every
+    /// parameter. Energy then holds per incident ordinate for any lobe width, and as
     /// eta -> 1 or sigma -> 0 the operators tend to the specular ones (T -> identity at matching). The
     /// price: reciprocity of the matrices is lost (to the size of the correction), the lobe shape in mu
     /// is still only sampled, and 2M albedo calls (~1-3 ms each) are added.
@@ -616,6 +617,12 @@ public:
     const FourierOperators<Real>& R21() const noexcept { return r21_; }
     const FourierOperators<Real>& T21() const noexcept { return t21_; }
 
+    /// The exact hemispherical totals RoughDielectric::albedo at each ordinate for light arriving from the
+    /// given side (computed by Renormalization::hemispherical_totals; empty otherwise).
+    const std::vector<Albedo<Real>>& ordinate_albedo(Incidence side) const noexcept {
+        return side == Incidence::from_above ? albedo_above_ : albedo_below_;
+    }
+
     /// I_k(mu_in, mu_out), k = 0..modes()-1, written to out[0..modes()-1], at any cosines in [0, 1]
     /// (absolute values; the sides are given by the function): reflection or transmission of light
     /// arriving from above (r12, t12) or below (r21, t21). Zeros for a specular interface.
@@ -636,16 +643,17 @@ public:
 
 private:
     // Scales column m of each operator (all modes alike) so that its flux-weighted sum equals the
-    // interface's hemispherical total for incidence mu_m (RoughDielectric::albedo, 64 x 64 facet nodes).
-    // A column whose captured flux is less than half or more than twice the total does not represent its
-    // lobe (the lobe passes between the ordinates): it is replaced by the specular column carrying the
-    // total to the mirror / Snell image of mu_m, split linearly between the two ordinates around it.
+    // interface's hemispherical total for incidence mu_m (RoughDielectric::albedo), blended continuously
+    // with the specular column (see the constructor's comment) where the ordinates miss the lobe.
     void renormalize(const Quadrature<Real>& ordinates) {
         const int m_count = static_cast<int>(ordinates.size());
         const auto weight = [&](int i) {
             return ordinates.weights[static_cast<std::size_t>(i)] * ordinates.nodes[static_cast<std::size_t>(i)];
         };
         Real split[2];
+        std::vector<Real> shape;
+        albedo_above_.clear();
+        albedo_below_.clear();
         for (int side = 0; side < 2; ++side) {
             FourierOperators<Real>& r = side == 0 ? r12_ : r21_;
             FourierOperators<Real>& t = side == 0 ? t12_ : t21_;
@@ -654,29 +662,40 @@ private:
             for (int m = 0; m < m_count; ++m) {
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
                 const Albedo<Real> target = rough_.albedo(side == 0 ? mu : -mu);
+                (side == 0 ? albedo_above_ : albedo_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {
                     FourierOperators<Real>& op = lobe == 0 ? r : t;
                     const Real total = lobe == 0 ? target.reflectance : target.transmittance;
                     Real flux = 0;
                     for (int n = 0; n < m_count; ++n) flux += weight(n) * op(0, n, m);
                     flux /= weight(m);
-                    if (flux > total / 2 && flux < 2 * total) {
-                        const Real scale = total / flux;
-                        for (int k = 0; k < modes_; ++k)
-                            for (int n = 0; n < m_count; ++n) op(k, n, m) *= scale;
-                        continue;
-                    }
+                    // Blend, continuous in every parameter: with r = flux / total, the lobe rescaled to the
+                    // total gets the share alpha = min(r, 1/r) and the specular column the rest; both carry
+                    // the total, so the column's energy is exact, and a resolved lobe (r ~ 1) is kept as is.
+                    const Real r_ratio = total > 0 ? flux / total : Real(0);
+                    const Real lobe_scale = !(flux > 0) ? Real(0) : r_ratio >= 1 ? total / flux / r_ratio : Real(1);
+                    const Real specular_share = !(total > 0) ? Real(0)
+                                                : r_ratio >= 1 ? Real(1) - Real(1) / r_ratio : Real(1) - r_ratio;
+                    for (int k = 0; k < modes_; ++k)
+                        for (int n = 0; n < m_count; ++n) op(k, n, m) *= lobe_scale;
+                    if (!(specular_share > 0)) continue;
                     // Specular column: image cosine (mirror, or Snell with eta_i sin_i = eta_o sin_o).
                     const Real e = eta_i / eta_o;
                     const Real image = lobe == 0 ? mu : std::sqrt(std::fmax(Real(0), 1 - e * e * (1 - mu) * (1 + mu)));
                     const Real x = std::fmin(std::fmax(image, ordinates.nodes.front()), ordinates.nodes.back());
                     int first = 0;
                     detail::local_lagrange(ordinates.nodes, 2, x, first, split);
-                    for (int k = 0; k < modes_; ++k)
-                        for (int n = 0; n < m_count; ++n) op(k, n, m) = Real(0);
+                    // The lobe's own azimuthal shape at its image, I_k / I_0 (a delta in phi would not decay
+                    // with k and would defeat the adaptive mode count of the layer solver).
+                    shape.resize(static_cast<std::size_t>(modes_));
+                    coefficients(side == 0 ? Incidence::from_above : Incidence::from_below, lobe == 1, mu, image,
+                                 shape.data());
+                    const Real i0 = shape[0];
                     for (int a = 0; a < std::min(2, m_count); ++a)
-                        for (int k = 0; k < modes_; ++k)
-                            op(k, first + a, m) = total * weight(m) * split[a] / weight(first + a);
+                        for (int k = 0; k < modes_; ++k) {
+                            const Real ratio = i0 > 0 ? shape[static_cast<std::size_t>(k)] / i0 : Real(k == 0);
+                            op(k, first + a, m) += specular_share * total * weight(m) * split[a] / weight(first + a) * ratio;
+                        }
                 }
             }
         }
@@ -695,6 +714,7 @@ private:
     bool index_matched_;
     bool specular_;
     FourierOperators<Real> r12_, t12_, r21_, t21_;
+    std::vector<Albedo<Real>> albedo_above_, albedo_below_;  // per ordinate, when renormalized
 };
 
 }  // namespace stratum

@@ -40,6 +40,8 @@
 
 #include <cmath>
 #include <cstddef>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -233,7 +235,7 @@ class LayeredSurface {
 public:
     /// Scratch memory for evaluation (sized on first use).
     struct Workspace {
-        std::vector<Real> in, out, c, field;
+        std::vector<Real> in, out, c, field, shape;
     };
 
     int ordinates() const noexcept { return static_cast<int>(q_.size()); }
@@ -343,7 +345,7 @@ private:
     void entry(Real mu_i, Workspace& ws) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.c.assign(kk * m, Real(0));
-        const Real flux = top_.rough() ? std::fmax(Real(0), top_in_(mu_i)) : top_.transmittance(mu_i);
+        const Real flux = top_.rough() ? std::fmax(Real(0), tables().top_in(mu_i)) : top_.transmittance(mu_i);
         if (!(flux > 0)) return;
         Real specular_share = 1;
         if (top_.rough()) {
@@ -365,10 +367,14 @@ private:
         }
         const Real mu_t = std::fabs(top_.smooth_interface().transmitted_cosine(mu_i));
         if (!(mu_t > 0)) return;
+        // Azimuthal shape: a delta in phi for a specular top; a rough top's lobe keeps its own shape I_k / I_0
+        // at the image (so that higher modes decay as the lobe's do).
+        shape(mu_i, mu_t, top_.rough() ? &*top_ops_ : nullptr, Incidence::from_above, ws);
         lagrange(mu_t, critical_cosine(top_, false), 4, ws);
         for (std::size_t i = 0; i < m; ++i) {
             const Real base = specular_share * flux * ws.in[i] / (q_.weights[i] * q_.nodes[i]);
-            for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] += base * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
+            for (std::size_t k = 0; k < kk; ++k)
+                ws.c[k * m + i] += base * ws.shape[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
         }
     }
 
@@ -392,6 +398,18 @@ private:
                 if (b != a) l *= (x - node(first + b)) / (node(first + a) - node(first + b));
             ws.in[static_cast<std::size_t>(first + a)] = l;
         }
+    }
+
+    // ws.shape[k] = I_k / I_0 of a rough boundary's transmission lobe from mu_in to mu_out for light arriving
+    // from `side` (ops == nullptr: specular, a delta in phi, shape 1 for every k).
+    void shape(Real mu_in, Real mu_out, const InterfaceOperators<Real>* ops, Incidence side, Workspace& ws) const {
+        const std::size_t kk = static_cast<std::size_t>(modes_);
+        ws.shape.assign(kk, Real(1));
+        if (ops == nullptr) return;
+        ws.in.resize(static_cast<std::size_t>(ops->modes()));
+        ops->coefficients(side, true, mu_in, mu_out, ws.in.data());
+        const Real i0 = ws.in[0];
+        for (std::size_t k = 0; k < kk; ++k) ws.shape[k] = i0 > 0 ? ws.in[k] / i0 : Real(k == 0);
     }
 
     // The critical cosine inside the layer for light leaving through `boundary` (0 if none).
@@ -451,7 +469,7 @@ private:
         if (boundary.rough()) {
             const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
             const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
-            const Real t_outside = std::fmax(Real(0), bottom ? bottom_in_(mu_o) : top_in_(mu_o));  // = transmittance(outside)
+            const Real t_outside = std::fmax(Real(0), bottom ? tables().bottom_in(mu_o) : tables().top_in(mu_o));
             const Real expected = (n_out / n_in) * (n_out / n_in) * t_outside;
             if (!(expected > 0)) return;
             // The reciprocity behind `expected` needs a reciprocal BTDF: with masking-only shadowing the exit
@@ -476,9 +494,10 @@ private:
             specular = expected * (r >= 1 ? Real(1) - Real(1) / r : Real(1) - r);
         }
         if (!(specular > 0) || !(mu_t > 0)) return;
+        shape(mu_t, mu_o, boundary.rough() ? &ops : nullptr, bottom ? Incidence::from_above : Incidence::from_below, ws);
         lagrange(mu_t, critical_cosine(boundary, bottom), 4, ws);
         for (std::size_t i = 0; i < m; ++i)
-            for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] += specular * ws.in[i];
+            for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] += specular * ws.in[i] * ws.shape[k];
     }
 
     // Flux leaving through a boundary from the mode-0 internal field: 2 pi sum_n w_n mu_n f_n tau(mu_n).
@@ -498,7 +517,21 @@ private:
     std::vector<Real> incidence_;
     std::vector<std::vector<Real>> cached_b_, cached_e_;  // per requested incidence: K blocks of M
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
-    detail::MuTable<Real> top_in_, bottom_in_;            // rough boundaries: transmittance of light arriving from outside
+    // Rough boundaries: the transmittance of light arriving from outside, tabulated on first use (64 albedo
+    // integrals each, so a solve for albedos alone does not pay for them); std::call_once keeps it thread-safe.
+    struct Tables {
+        std::once_flag once;
+        detail::MuTable<Real> top_in, bottom_in;
+    };
+    std::shared_ptr<Tables> tables_ = std::make_shared<Tables>();
+    const Tables& tables() const {
+        std::call_once(tables_->once, [this] {
+            constexpr int intervals = 64;
+            if (top_.rough()) tables_->top_in.build(intervals, [this](Real mu) { return top_.transmittance(mu); });
+            if (bottom_.rough()) tables_->bottom_in.build(intervals, [this](Real mu) { return bottom_.transmittance(-mu); });
+        });
+        return *tables_;
+    }
     std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
 };
 
@@ -593,16 +626,15 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                 "); enable options.delta_m or use more ordinates");
         }
     };
-    // Rough boundaries: tables of the transmittance of light arriving from outside (entry flux, exit weights).
-    constexpr int table_intervals = 64;
-    if (top.rough()) s.top_in_.build(table_intervals, [&](Real mu) { return top.transmittance(mu); });
-    if (bottom.rough() && want_t) s.bottom_in_.build(table_intervals, [&](Real mu) { return bottom.transmittance(-mu); });
     // Hemispherical transmittance out of the layer at each ordinate (for albedo/transmittance fluxes).
     s.exit_top_.resize(m);
     s.exit_bottom_.resize(m);
+    // (the renormalized rough operators computed these totals already)
+    const auto& top_totals = s.top_ops_->ordinate_albedo(Incidence::from_below);
+    const auto& bottom_totals = s.bottom_ops_->ordinate_albedo(Incidence::from_above);
     for (std::size_t i = 0; i < m; ++i) {
-        s.exit_top_[i] = top.transmittance(-q.nodes[i]);
-        s.exit_bottom_[i] = bottom.transmittance(q.nodes[i]);
+        s.exit_top_[i] = top_totals.size() == m ? top_totals[i].transmittance : top.transmittance(-q.nodes[i]);
+        s.exit_bottom_[i] = bottom_totals.size() == m ? bottom_totals[i].transmittance : bottom.transmittance(q.nodes[i]);
     }
 
     using detail::Matrix;
