@@ -287,14 +287,94 @@ TEST_CASE("optical thickness from 0 to infinity: finite, bounded, and continuous
 
 TEST_CASE("a slab of zero thickness between a rough top and an index-matched bottom is the top interface alone") {
     // Nothing comes back from below: the subsurface term is exactly 0, and the transmittance is the top's
-    // hemispherical transmittance as the ordinates resolve it (Gauss sum of the BTDF lobe).
+    // hemispherical transmittance (the entering flux is rescaled to its tabulated exact value).
     const RoughDielectric<double> top(0.3, 1.0, 1.4);
     const auto layer = solve_layer(Slab<double>(0.9, 0.8, 0.0), top, Boundary<double>::index_matched(1.4), with_ordinates(16));
     for (double mu : {1.0, 0.6, 0.2}) {
         CHECK(layer.albedo(mu).subsurface == 0.0);
         MESSAGE("mu = " << mu << ": layer T " << layer.transmittance(mu) << " vs interface T " << top.transmittance(mu));
-        CHECK(std::fabs(layer.transmittance(mu) - top.transmittance(mu)) < 2e-3);
+        CHECK(std::fabs(layer.transmittance(mu) - top.transmittance(mu)) < 1e-6);  // table: <= 1e-7 here
     }
+}
+
+namespace {
+// int f(wo) |wo.z| dwo over a hemisphere, by a 24-point half-range Gauss rule in |mu| and a 48-point periodic
+// trapezoid rule in phi (spectrally accurate for the smooth truncated Fourier series in phi).
+template <class F>
+double hemisphere_integral(F f, bool upper) {
+    const auto q = stratum::gauss_legendre_half<double>(24);
+    double sum = 0;
+    for (std::size_t i = 0; i < q.size(); ++i)
+        for (int j = 0; j < 48; ++j) {
+            const double phi = 2 * 3.14159265358979323846 * (j + 0.5) / 48;
+            sum += q.weights[i] * q.nodes[i] * f(direction(upper ? q.nodes[i] : -q.nodes[i], phi)) * 2 * 3.14159265358979323846 / 48;
+        }
+    return sum;
+}
+}  // namespace
+
+TEST_CASE("the BRDF and BTDF integrate to the albedo and transmittance") {
+    // The flux functions use the mode-0 field and the exact hemispherical totals; the BSDFs sum all modes at
+    // true angles, through the boundaries' lobes (rough) or by interpolating the internal radiance (smooth).
+    // They agree up to the discretization: measured (MESSAGE) <= 2.2e-4 rough at M = 16 (9e-3 at M = 8), and
+    // <= 1.4e-2 smooth at M = 16, where the unscattered beam is a delta carried separately (direct_*) and the
+    // radiance leaving through a smooth face is interpolated between ordinates (layer.hpp).
+    const auto slab = Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    SUBCASE("rough boundaries (Stam's skin)") {
+        const auto layer = solve_layer(slab, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0),
+                                       with_ordinates(16));
+        for (double mu : {1.0, 0.7, 0.3}) {
+            const Vec3<double> wi = direction(mu, 0.0);
+            const double r = hemisphere_integral([&](Vec3<double> o) { return layer.subsurface_brdf(wi, o); }, true);
+            const double t = hemisphere_integral([&](Vec3<double> o) { return layer.btdf(wi, o); }, false);
+            MESSAGE("rough, mu0 = " << mu << ": int r_s = " << r << " vs " << layer.albedo(mu).subsurface
+                                    << ", int t_s = " << t << " vs " << layer.transmittance(mu));
+            CHECK(std::fabs(r - layer.albedo(mu).subsurface) < 5e-4);
+            CHECK(std::fabs(t - layer.transmittance(mu)) < 5e-4);
+        }
+    }
+    SUBCASE("smooth boundaries: scattered light plus the unscattered delta") {
+        const auto layer = solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0),
+                                       with_ordinates(16));
+        for (double mu : {1.0, 0.7, 0.3}) {
+            const Vec3<double> wi = direction(mu, 0.0);
+            const double r = hemisphere_integral([&](Vec3<double> o) { return layer.subsurface_brdf(wi, o); }, true);
+            const double t = hemisphere_integral([&](Vec3<double> o) { return layer.btdf(wi, o); }, false);
+            MESSAGE("smooth, mu0 = " << mu << ": int r_s + direct = " << r + layer.direct_reflectance(mu) << " vs "
+                                     << layer.albedo(mu).subsurface << ", int t_s + direct = "
+                                     << t + layer.direct_transmittance(mu) << " vs " << layer.transmittance(mu));
+            CHECK(std::fabs(r + layer.direct_reflectance(mu) - layer.albedo(mu).subsurface) < 2e-2);
+            CHECK(std::fabs(t + layer.direct_transmittance(mu) - layer.transmittance(mu)) < 2e-2);
+        }
+    }
+}
+
+TEST_CASE("at normal incidence the BRDF does not depend on the azimuth, and it is continuous there") {
+    // A beam along the normal has no azimuthal modes k > 0 (physics-notes section 6: normal incidence exact).
+    for (bool smooth : {false, true}) {
+        const auto slab = Slab<double>::from_transparency(0.9, 0.8, 0.5);
+        const auto layer = smooth ? solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0),
+                                                with_ordinates(16))
+                                  : solve_layer(slab, RoughDielectric<double>(0.3, 1.0, 1.4),
+                                                RoughDielectric<double>(0.3, 1.4, 1.0), with_ordinates(16));
+        const double at_pole = layer.subsurface_brdf(direction(1.0, 0.0), direction(0.5, 0.0));
+        for (double phi : {0.0, 1.5, 3.0}) {
+            const double near_pole = layer.subsurface_brdf(direction(1 - 1e-12, 0.0), direction(0.5, phi));
+            CHECK(std::fabs(near_pole - at_pole) <= 1e-5 * at_pole);
+        }
+    }
+}
+
+TEST_CASE("the tabulated boundary transmittance matches the exact integral") {
+    // layer.hpp tabulates T(mu) of a rough boundary on 65 points in sqrt(mu) (exact below mu = 1/64^2): the
+    // layer's zero-thickness transmittance, which is that table at the true angle, against the interface.
+    const RoughDielectric<double> top(0.3, 1.0, 1.4);
+    const auto layer = solve_layer(Slab<double>(0.9, 0.8, 0.0), top, Boundary<double>::index_matched(1.4), with_ordinates(8));
+    double worst = 0;
+    for (double mu : {1e-8, 1e-5, 1e-4, 1e-3, 0.01, 0.2, 0.55, 0.9, 1.0})
+        worst = std::fmax(worst, std::fabs(layer.transmittance(mu) - top.transmittance(mu)));
+    MESSAGE("max |table - exact| = " << worst);
+    CHECK(worst < 2e-3);
 }
 
 TEST_CASE("hard parameters stay finite and bounded") {
@@ -325,12 +405,11 @@ TEST_CASE("hard parameters stay finite and bounded") {
         for (double g : {-0.9, 0.0, 0.9})
             check_layer(solve_layer(Slab<double>(0.95, g, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
                                     RoughDielectric<double>(0.3, 1.4, 1.0), with_ordinates(8, 0, false)));
-        // Without delta-M the 16-moment expansion of g = +-0.99 is not admissible on 8 ordinates (the
-        // discrete eigenvalues lambda^2 turn negative, as DISORT's ASYMTX reports): refused, naming the remedy.
+        // Without delta-M the 16-moment expansion of g = +-0.99 is not admissible on 8 ordinates (the discrete
+        // eigenvalues lambda^2 turn negative, as DISORT's ASYMTX reports): the slab solver regularizes it.
         for (double g : {-0.99, 0.99})
-            CHECK_THROWS_WITH(solve_layer(Slab<double>(0.95, g, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
-                                          RoughDielectric<double>(0.3, 1.4, 1.0), with_ordinates(8, 0, false)),
-                              doctest::Contains("options.delta_m"));
+            check_layer(solve_layer(Slab<double>(0.95, g, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
+                                    RoughDielectric<double>(0.3, 1.4, 1.0), with_ordinates(8, 0, false)));
     }
     SUBCASE("roughness from smooth to very rough") {
         check_layer(solve_layer(Slab<double>(0.9, 0.8, 1.0), SmoothDielectric<double>(1.0, 1.4),
@@ -362,10 +441,10 @@ TEST_CASE("randomized sweep over the parameter domain: no NaN, reflectance and t
 #if __has_feature(address_sanitizer)
     const int sets = 100;
 #else
-    const int sets = 300;
+    const int sets = 1000;
 #endif
 #else
-    const int sets = 300;
+    const int sets = 1000;
 #endif
     std::mt19937_64 rng(20261122);
     auto u = [&] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
@@ -375,7 +454,7 @@ TEST_CASE("randomized sweep over the parameter domain: no NaN, reflectance and t
         const double g = 1.98 * u() - 0.99;
         const double tau = u() < 0.1 ? std::numeric_limits<double>::infinity() : std::pow(10.0, 8 * u() - 4);
         const double n2 = 1 + 1.5 * u(), n3 = u() < 0.5 ? 1.0 : 1 + 1.5 * u();
-        const int m = 2 + static_cast<int>(5 * u());
+        const int m = 2 + static_cast<int>(11 * u());
         const bool smooth = u() < 0.2;
         const double s1 = std::pow(10.0, -2 + 2 * u()), s2 = std::pow(10.0, -2 + 2 * u());
         const auto layer = smooth ? solve_layer(Slab<double>(albedo, g, tau), SmoothDielectric<double>(1.0, n2),
@@ -392,6 +471,50 @@ TEST_CASE("randomized sweep over the parameter domain: no NaN, reflectance and t
             MESSAGE("set " << i << ": albedo " << albedo << " g " << g << " tau " << tau << " n2 " << n2 << " n3 " << n3
                            << " M " << m << " smooth " << smooth << " sigma " << s1 << "," << s2 << " mu " << mu
                            << " -> R " << a.surface << " + " << a.subsurface << " T " << t << " f " << f);
+    }
+    CHECK(failures == 0);
+}
+
+TEST_CASE("randomized sweep with specular boundaries (10^4 sets): no NaN, bounded, energy never created") {
+    // Smooth or index-matched faces cost no hemispherical integrals, so this sweep covers the slab solver, the
+    // adding and the specular paths over many more sets than the rough sweep above.
+#if defined(__SANITIZE_ADDRESS__)
+    const int sets = 1000;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+    const int sets = 1000;
+#else
+    const int sets = 10000;
+#endif
+#else
+    const int sets = 10000;
+#endif
+    // g from -0.9: below it the backward peak cannot be removed by delta-M and the truncated expansion is
+    // regularized (slab.hpp), which can create up to 1% energy (g = -0.972, M = 10: R + T = 1.0106); README
+    // lists this limitation.
+    std::mt19937_64 rng(977);
+    auto u = [&] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+    int failures = 0;
+    for (int i = 0; i < sets; ++i) {
+        const double albedo = u() < 0.1 ? 1.0 : u();
+        const double g = 1.89 * u() - 0.9;
+        const double tau = u() < 0.1 ? std::numeric_limits<double>::infinity() : std::pow(10.0, 8 * u() - 4);
+        const double n2 = u() < 0.2 ? 1.0 : 1 + 1.5 * u(), n3 = u() < 0.5 ? 1.0 : 1 + 1.5 * u();
+        const int m = 2 + static_cast<int>(11 * u());
+        const auto layer = solve_layer(Slab<double>(albedo, g, tau), SmoothDielectric<double>(1.0, n2),
+                                       SmoothDielectric<double>(n2, n3), with_ordinates(m, 0, true));
+        const double mu = u();
+        const auto a = layer.albedo(mu);
+        const double t = layer.transmittance(mu);
+        const double f = layer.subsurface_brdf(direction(mu, 0.0), direction(u(), 6.283 * u()));
+        const double ft = layer.btdf(direction(mu, 0.0), direction(-u(), 6.283 * u()));
+        const bool ok = std::isfinite(a.total()) && std::isfinite(t) && std::isfinite(f) && std::isfinite(ft) &&
+                        a.surface >= 0 && a.subsurface >= 0 && t >= 0 && a.total() + t <= 1 + 1e-12 &&
+                        layer.direct_transmittance(mu) <= t + 1e-2;
+        if (!ok && failures++ < 5)
+            MESSAGE("set " << i << ": albedo " << albedo << " g " << g << " tau " << tau << " n2 " << n2 << " n3 " << n3
+                           << " M " << m << " mu " << mu << " -> R " << a.surface << " + " << a.subsurface << " T " << t
+                           << " direct T " << layer.direct_transmittance(mu) << " f " << f << " ft " << ft);
     }
     CHECK(failures == 0);
 }

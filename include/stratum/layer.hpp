@@ -78,7 +78,7 @@ constexpr bool includes(LayerOutput set, LayerOutput o) noexcept {
 struct LayerOptions {
     int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), >= 1
     int modes = 0;        ///< K azimuthal modes; 0 = 2M (as many as 2M Legendre moments support)
-    bool delta_m = true;  ///< delta-M scaling of the phase function with 2M moments (Wiscombe 1977)
+    bool delta_m = true;  ///< delta-M scaling (Wiscombe 1977) with 2M moments, for g > 0 (forward peaks)
     /// Rough boundaries: rescale each operator column to the exact hemispherical totals (interface_operators.hpp).
     Renormalization renormalization = Renormalization::hemispherical_totals;
     /// Smooth boundaries: how the Snell-mapped transmission is put on the ordinates (interface_operators.hpp).
@@ -168,7 +168,9 @@ template <class Real>
 SlabModes<Real> prepare_slab(const Slab<Real>& s, const Quadrature<Real>& q, int modes, bool delta_m, Real tau_override) {
     const int moments = 2 * static_cast<int>(q.size());
     const Real tau = tau_override;
-    if (delta_m && s.g() != Real(0)) {
+    // Delta-M folds a FORWARD peak into the unscattered beam; for g < 0 (a backward peak) its moments
+    // (g^l - f) / (1 - f) would be far outside [-1, 1], so backward-scattering media are truncated plainly.
+    if (delta_m && s.g() > Real(0)) {
         const DeltaMScaled<Real> dm = delta_m_scaling(s.albedo(), tau, s.g(), moments);
         // 1 - Omega' = (1 - Omega) / (1 - f Omega), with 1 - f Omega = (1 - f) + f (1 - Omega): no cancellation.
         const Real one_minus_f_omega = (Real(1) - dm.f) + dm.f * s.one_minus_albedo();
@@ -248,7 +250,8 @@ public:
     const std::vector<ComponentOperators<Real>>& mode_operators() const noexcept { return whole_; }
 
     /// Total BRDF above the layer, r_12 + r_s (the specular reflection of a smooth top is a delta and
-    /// is not included: use the top's SmoothDielectric for it).
+    /// is not included: use the top's SmoothDielectric for it, and direct_reflectance() below).
+    /// Outputs that were not requested (LayerRequest::outputs) evaluate to 0.
     Real brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         const Real surface = (top_.rough() && includes(outputs_, LayerOutput::surface_reflection))
                                  ? top_.rough_interface()->brdf(wi, wo) : Real(0);
@@ -256,40 +259,59 @@ public:
     }
     Real brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return brdf(wi, wo, ws); }
 
-    /// r_s: light refracted into the layer, scattered, and refracted back out of the top (0 if not requested).
+    /// r_s: light refracted into the layer, scattered, and refracted back out of the top. Negative values of
+    /// the truncated azimuthal series (Gibbs ringing with few modes) are returned as 0; NaN is never hidden.
     Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         if (!includes(outputs_, LayerOutput::subsurface_reflection) || !(wi.z > 0) || !(wo.z > 0)) return Real(0);
-        return exit_sum(wi, wo, *top_ops_, top_, false, field(wi.z, false, ws), ws);
+        const Real mu_i = std::fmin(wi.z, Real(1));
+        const Real scale = scattering_scale(mu_i, ws);
+        return scale * exit_sum(wi, wo, *top_ops_, top_, false, field(mu_i, false, ws), ws);
     }
     Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return subsurface_brdf(wi, wo, ws); }
 
-    /// t_s: BTDF from above (wi.z > 0) to below (wo.z < 0) through the whole layer, including the
-    /// unscattered beam's contribution only as far as the ordinates carry it (0 if not requested).
+    /// t_s: BTDF from above (wi.z > 0) to below (wo.z < 0) through the whole layer. Between two specular
+    /// boundaries the unscattered beam is a delta, not part of t_s: see direct_transmittance().
     Real btdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         if (!includes(outputs_, LayerOutput::transmission) || !(wi.z > 0) || !(wo.z < 0)) return Real(0);
-        return exit_sum(wi, wo, *bottom_ops_, bottom_, true, field(wi.z, true, ws), ws);
+        const Real mu_i = std::fmin(wi.z, Real(1));
+        const Real scale = scattering_scale(mu_i, ws);
+        return scale * exit_sum(wi, wo, *bottom_ops_, bottom_, true, field(mu_i, true, ws), ws);
     }
     Real btdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return btdf(wi, wo, ws); }
 
-    /// Directional-hemispherical reflectance for incidence cosine mu_i in (0, 1]: {surface, subsurface}.
+    /// Directional-hemispherical reflectance for incidence cosine mu_i in (0, 1]: {surface, subsurface}
+    /// (0 outside (0, 1]). The subsurface part includes the unscattered beam (see direct_reflectance).
     struct Albedo {
         Real surface, subsurface;
         Real total() const noexcept { return surface + subsurface; }
     };
     Albedo albedo(Real mu_i) const {
+        if (!(mu_i > 0 && mu_i <= 1)) return {Real(0), Real(0)};
         Workspace ws;
         Albedo a{top_.reflectance(mu_i), Real(0)};
         if (includes(outputs_, LayerOutput::subsurface_reflection))
-            a.subsurface = std::fmax(Real(0), flux_out(field(mu_i, false, ws), exit_top_));  // >= 0 up to rounding
+            a.subsurface = non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, false, ws), exit_top_)) +
+                           direct(mu_i, false);
         return a;
     }
 
-    /// Fraction of the incident flux (cosine mu_i from above) leaving through the bottom.
+    /// Fraction of the incident flux (cosine mu_i in (0, 1] from above) leaving through the bottom, including
+    /// the unscattered beam; 0 outside (0, 1] or if transmission was not requested.
     Real transmittance(Real mu_i) const {
-        if (!includes(outputs_, LayerOutput::transmission)) return Real(0);
+        if (!includes(outputs_, LayerOutput::transmission) || !(mu_i > 0 && mu_i <= 1)) return Real(0);
         Workspace ws;
-        return std::fmax(Real(0), flux_out(field(mu_i, true, ws), exit_bottom_));  // >= 0 up to rounding
+        return non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, true, ws), exit_bottom_)) + direct(mu_i, true);
     }
+
+    /// Between two specular (smooth or index-matched) boundaries the unscattered beam leaves as a delta:
+    /// through the bottom in the Snell direction of wi (direct_transmittance) and, after a specular
+    /// reflection at the bottom, through the top in the mirror direction (direct_reflectance). These are the
+    /// fractions of the incident flux they carry, computed exactly at the true angle (Fresnel factors, the
+    /// attenuation e^{-tau/mu'} and the geometric series of bounces between the faces); 0 otherwise.
+    /// albedo() and transmittance() include them; the scattered light is scaled so that it receives exactly the
+    /// energy the true beam loses, which keeps a non-absorbing layer exactly energy-conserving.
+    Real direct_transmittance(Real mu_i) const { return mu_i > 0 && mu_i <= 1 ? direct(mu_i, true) : Real(0); }
+    Real direct_reflectance(Real mu_i) const { return mu_i > 0 && mu_i <= 1 ? direct(mu_i, false) : Real(0); }
 
     /// r_a(wo): subsurface radiance leaving towards wo (wo.z > 0) under a uniform sky of unit radiance
     /// (Stam's ambient term; the top's own reflection of the sky is its reflectance(wo.z) by reciprocity).
@@ -338,14 +360,13 @@ private:
     // Rough top: c_{k,m} = (2 - delta_k0)/(2 pi) I^{t12}_k(mu_i -> mu_m), rescaled so that the flux it carries,
     // 2 pi sum_m w_m mu_m c_{0,m} (a Gauss sum over a lobe the ordinates may not resolve), equals the exact
     // transmittance T_12(mu_i). Specular top (or a lobe that falls between the ordinates): the refracted
-    // beam at the Snell cosine, spread over the four nearest ordinates inside the top's escape cone with
-    // Lagrange weights (they sum to 1, so the flux is conserved; exact when the Snell cosine is an ordinate;
-    // the photon Monte Carlo showed them clearly better than a non-negative linear spread, which cannot
-    // reach mu' = 1 beyond the last ordinate).
+    // beam at the Snell cosine, spread over the nearest ordinates inside the top's escape cone with
+    // Lagrange weights (they sum to 1, so the flux is conserved; exact when the Snell cosine is an ordinate).
     void entry(Real mu_i, Workspace& ws) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.c.assign(kk * m, Real(0));
-        const Real flux = top_.rough() ? std::fmax(Real(0), tables().top_in(mu_i)) : top_.transmittance(mu_i);
+        const Real flux = !top_.rough() || mu_i < tables().grazing ? top_.transmittance(mu_i)
+                                                                    : non_negative(tables().top_in(mu_i));
         if (!(flux > 0)) return;
         Real specular_share = 1;
         if (top_.rough()) {
@@ -370,11 +391,17 @@ private:
         // Azimuthal shape: a delta in phi for a specular top; a rough top's lobe keeps its own shape I_k / I_0
         // at the image (so that higher modes decay as the lobe's do).
         shape(mu_i, mu_t, top_.rough() ? &*top_ops_ : nullptr, Incidence::from_above, ws);
-        lagrange(mu_t, critical_cosine(top_, false), 4, ws);
+        // 4 points from 8 ordinates on (accurate: the photon Monte Carlo prefers it to a linear spread by 0.002
+        // at 16 ordinates); with fewer ordinates the stencil spans most of [0, 1] and its negative weights can
+        // create energy, so the spread is linear there, clamped to the stencil: non-negative weights.
+        const bool few = q_.size() < 8;
+        lagrange(few ? std::fmin(mu_t, q_.nodes.back()) : mu_t, critical_cosine(top_, false), few ? 2 : 4, ws);
         for (std::size_t i = 0; i < m; ++i) {
             const Real base = specular_share * flux * ws.in[i] / (q_.weights[i] * q_.nodes[i]);
-            for (std::size_t k = 0; k < kk; ++k)
-                ws.c[k * m + i] += base * ws.shape[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
+            Real pole = 1;  // pole_factor(mu_t, mu_m)^k
+            const Real step = pole_factor(mu_t, q_.nodes[i]);
+            for (std::size_t k = 0; k < kk; ++k, pole *= step)
+                ws.c[k * m + i] += base * pole * ws.shape[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
         }
     }
 
@@ -431,7 +458,9 @@ private:
         exit_weights(mu_o, ops, boundary, bottom, ws);
         const std::size_t m = q_.size();
         Real sum = 0, c_prev = 1, c_k = 1;  // cos(k dphi) by the Chebyshev recurrence
-        for (int k = 0; k < modes_; ++k) {
+        // At the pole (wi or wo along the normal) the azimuth is undefined and only mode 0 survives.
+        const int modes = st > 0 ? modes_ : std::min(modes_, 1);
+        for (int k = 0; k < modes; ++k) {
             const Real* f = fld + static_cast<std::size_t>(k) * m;
             Real s = 0;
             for (std::size_t i = 0; i < m; ++i) s += ws.out[static_cast<std::size_t>(k) * m + i] * f[i];
@@ -440,7 +469,7 @@ private:
             c_prev = c_k;
             c_k = c_next;
         }
-        return std::fmax(sum, Real(0));
+        return non_negative(sum);
     }
 
     // The value of one mode at outgoing cosine mu_o (used for the mode-0 ambient term).
@@ -450,7 +479,7 @@ private:
         const std::size_t m = q_.size();
         Real s = 0;
         for (std::size_t i = 0; i < m; ++i) s += ws.out[static_cast<std::size_t>(k) * m + i] * fld[i];
-        return std::fmax(s, Real(0));
+        return non_negative(s);
     }
 
     // ws.out[k M + m]: weight of internal ordinate m, mode k, in the radiance leaving at mu_o.
@@ -469,7 +498,8 @@ private:
         if (boundary.rough()) {
             const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
             const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
-            const Real t_outside = std::fmax(Real(0), bottom ? tables().bottom_in(mu_o) : tables().top_in(mu_o));
+            const Real t_outside = mu_o < tables().grazing ? boundary.transmittance(outside)
+                                   : non_negative(bottom ? tables().bottom_in(mu_o) : tables().top_in(mu_o));
             const Real expected = (n_out / n_in) * (n_out / n_in) * t_outside;
             if (!(expected > 0)) return;
             // The reciprocity behind `expected` needs a reciprocal BTDF: with masking-only shadowing the exit
@@ -496,8 +526,65 @@ private:
         if (!(specular > 0) || !(mu_t > 0)) return;
         shape(mu_t, mu_o, boundary.rough() ? &ops : nullptr, bottom ? Incidence::from_above : Incidence::from_below, ws);
         lagrange(mu_t, critical_cosine(boundary, bottom), 4, ws);
-        for (std::size_t i = 0; i < m; ++i)
-            for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] += specular * ws.in[i] * ws.shape[k];
+        for (std::size_t i = 0; i < m; ++i) {
+            Real pole = 1;
+            const Real step = pole_factor(mu_t, q_.nodes[i]);
+            for (std::size_t k = 0; k < kk; ++k, pole *= step) ws.out[k * m + i] += specular * ws.in[i] * pole * ws.shape[k];
+        }
+    }
+
+    // Mode k of a field near the pole varies as sin^k(theta) (it is (1 - mu^2)^{k/2} times a smooth function):
+    // moving a beam (or reading a radiance) between the internal cosine mu_t and an ordinate mu_m scales mode k
+    // by (sin theta_t / sin theta_m)^k. This returns that ratio, capped at 1 so that nothing is amplified; it
+    // makes every k > 0 mode vanish for a beam along the normal, as it must.
+    static Real pole_factor(Real mu_t, Real mu_m) noexcept {
+        const Real st2 = (Real(1) - mu_t) * (Real(1) + mu_t), sm2 = (Real(1) - mu_m) * (Real(1) + mu_m);
+        return st2 >= sm2 ? Real(1) : std::sqrt(st2 / sm2);
+    }
+
+    // x < 0 -> 0 (rounding or the interpolation's overshoot); NaN passes through so that tests see it.
+    static Real non_negative(Real x) noexcept { return x < 0 ? Real(0) : x; }
+
+    // The unscattered beam between two specular boundaries (see direct_transmittance), exactly at mu_i.
+    Real direct(Real mu_i, bool transmitted) const {
+        if (!direct_separated_) return Real(0);
+        const SmoothDielectric<Real>& t = top_.smooth_interface();
+        const SmoothDielectric<Real>& b = bottom_.smooth_interface();
+        const Real mu_t = std::fabs(t.transmitted_cosine(mu_i));
+        if (!(mu_t > 0)) return Real(0);
+        const Real d = std::isinf(direct_tau_) ? Real(0) : std::exp(-direct_tau_ / mu_t);
+        const Real bounce = Real(1) / (Real(1) - t.reflectance(-mu_t) * b.reflectance(mu_t) * d * d);
+        const Real into = t.transmittance(mu_i) * d * bounce;
+        return transmitted ? into * b.transmittance(mu_t) : into * b.reflectance(mu_t) * d * t.transmittance(-mu_t);
+    }
+
+    // Between specular faces the scattered light is driven by the beam spread over the ordinates, whose
+    // extinction differs from the true beam's. Energy taken from a beam of unit flux entering at internal
+    // cosine x, over all its passes: E(x) = (1 - d)(1 + r23 d) / (1 - r21 r23 d^2), d = e^{-tau/x}. The scattered
+    // field is scaled by E(mu_t) / sum_m s_m E(mu_m), s_m the spread's flux shares, so that it receives exactly
+    // the energy the true beam loses (energy is then conserved exactly with the exact direct beam).
+    Real scattering_scale(Real mu_i, Workspace& ws) const {
+        if (!direct_separated_ || modes_ == 0) return Real(1);
+        const SmoothDielectric<Real>& t = top_.smooth_interface();
+        const SmoothDielectric<Real>& b = bottom_.smooth_interface();
+        auto extracted = [&](Real x) {
+            const Real d = std::isinf(direct_tau_) ? Real(0) : std::exp(-direct_tau_ / x);
+            const Real r21 = t.reflectance(-x), r23 = b.reflectance(x);
+            return (Real(1) - d) * (Real(1) + r23 * d) / (Real(1) - r21 * r23 * d * d);
+        };
+        const Real mu_t = std::fabs(t.transmitted_cosine(mu_i));
+        if (!(mu_t > 0)) return Real(1);
+        entry(mu_i, ws);
+        Real spread = 0, total = 0;
+        for (std::size_t n = 0; n < q_.size(); ++n) {
+            const Real share = q_.weights[n] * q_.nodes[n] * ws.c[n];  // mode-0 flux share (up to 1 / 2 pi)
+            spread += share * extracted(q_.nodes[n]);
+            total += share;
+        }
+        // The shares are Lagrange weights and may be negative; where the spread extracts less than half the
+        // true beam's energy the scale is capped at 2, so that the spread's overshoot is not amplified.
+        if (!(spread > 0)) return Real(1);
+        return std::fmin(total * extracted(mu_t) / spread, Real(2));
     }
 
     // Flux leaving through a boundary from the mode-0 internal field: 2 pi sum_n w_n mu_n f_n tau(mu_n).
@@ -517,11 +604,14 @@ private:
     std::vector<Real> incidence_;
     std::vector<std::vector<Real>> cached_b_, cached_e_;  // per requested incidence: K blocks of M
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
+    bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
+    Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled)
     // Rough boundaries: the transmittance of light arriving from outside, tabulated on first use (64 albedo
     // integrals each, so a solve for albedos alone does not pay for them); std::call_once keeps it thread-safe.
     struct Tables {
         std::once_flag once;
         detail::MuTable<Real> top_in, bottom_in;
+        Real grazing = 0;  // below the first table interval the transmittance is computed exactly
     };
     std::shared_ptr<Tables> tables_ = std::make_shared<Tables>();
     const Tables& tables() const {
@@ -529,6 +619,7 @@ private:
             constexpr int intervals = 64;
             if (top_.rough()) tables_->top_in.build(intervals, [this](Real mu) { return top_.transmittance(mu); });
             if (bottom_.rough()) tables_->bottom_in.build(intervals, [this](Real mu) { return bottom_.transmittance(-mu); });
+            tables_->grazing = Real(1) / Real(intervals * intervals);
         });
         return *tables_;
     }
@@ -615,15 +706,14 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         }
     }
     // The slab modes, with an inadmissible truncated phase function reported as a parameter problem.
+    // A phase function too peaked for the ordinates (|g| near 1 without delta-M, or any g < 0 near -1, whose
+    // backward peak delta-M cannot remove) has a truncated expansion that is not admissible on them: the slab
+    // solver then regularizes its aliased part (slab.hpp), which keeps the results finite and energy-conserving.
     auto slab_mode = [&](const detail::SlabModes<Real>& p, int k) {
         try {
             return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k));
         } catch (const std::domain_error&) {
-            throw std::invalid_argument(
-                "stratum: g = " + detail::format_value(p.slab.g()) + " cannot be represented by its " +
-                std::to_string(2 * m) + "-moment Legendre expansion on " + std::to_string(m) +
-                " ordinates (the discretized phase function is not admissible in Fourier mode " + std::to_string(k) +
-                "); enable options.delta_m or use more ordinates");
+            return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
         }
     };
     // Hemispherical transmittance out of the layer at each ordinate (for albedo/transmittance fluxes).
@@ -708,6 +798,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.modes_ = solved;
 
     if (want_a) {
+        // (computed before the unscattered beam is taken out of Q_b: under a diffuse sky it is diffuse too)
         // Uniform unit sky: radiance transmitted to internal ordinate m is (n2/n1)^2 tau_21(mu_m) by
         // reciprocity of the top's BTDF (t_12 / n_2^2 = t_21 / n_1^2 with arguments swapped).
         const Real ratio = top.eta_below() / top.eta_above();
@@ -717,6 +808,25 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         for (std::size_t n = 0; n < m; ++n)
             for (std::size_t i = 0; i < m; ++i) s.ambient_field_[n] += s.qb_[0](n, i) * c[i];
     }
+    // Between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its
+    // path is diagonal): take it out of Q_b and Q_e, per ordinate
+    //   Q_e^dir = d / (1 - r21 r23 d^2),   Q_b^dir = d^2 r23 / (1 - r21 r23 d^2),   d = e^{-tau/mu_m},
+    // so that brdf/btdf hold scattered light only, and add it back exactly at the true angle (direct()).
+    if (!top.rough() && !bottom.rough() && slabs.size() == 1) {
+        s.direct_separated_ = true;
+        s.direct_tau_ = prepared[0].slab.optical_thickness();
+        for (std::size_t i = 0; i < m; ++i) {
+            const Real mu = q.nodes[i];
+            const Real d = std::isinf(s.direct_tau_) ? Real(0) : std::exp(-s.direct_tau_ / mu);
+            const Real r21 = top.smooth_interface().reflectance(-mu), r23 = bottom.smooth_interface().reflectance(mu);
+            const Real bounce = Real(1) / (Real(1) - r21 * r23 * d * d);
+            for (int k = 0; k < s.modes_; ++k) {
+                s.qb_[static_cast<std::size_t>(k)](i, i) -= d * d * r23 * bounce;
+                if (want_t) s.qe_[static_cast<std::size_t>(k)](i, i) -= d * bounce;
+            }
+        }
+    }
+
     // Precompute the fields of the requested incidences.
     Workspace ws;
     s.cached_b_.assign(s.incidence_.size(), {});
