@@ -11,6 +11,8 @@
 #include <random>
 #include <vector>
 
+#include "reference_phase.hpp"
+
 using stratum::add_components;
 using stratum::ComponentOperators;
 using stratum::Quadrature;
@@ -20,42 +22,9 @@ namespace {
 
 const double inf = std::numeric_limits<double>::infinity();
 
-// Henyey-Greenstein p_0 and p_k at the ordinates (same Legendre sum as in test_slab.cpp, k-th mode).
-void hg_matrices(double g, const std::vector<double>& mu, int k, int nmax, std::vector<double>& same,
-                 std::vector<double>& opposite) {
-    const std::size_t m = mu.size();
-    auto lam = [&](double x) {
-        std::vector<double> out(static_cast<std::size_t>(nmax + 1), 0.0);
-        const double s = std::sqrt(std::fmax(0.0, (1 - x) * (1 + x)));
-        double lkk = 1;
-        for (int j = 1; j <= k; ++j) lkk *= std::sqrt((2.0 * j - 1) / (2.0 * j)) * s;
-        out[static_cast<std::size_t>(k)] = lkk;
-        if (k + 1 <= nmax) out[static_cast<std::size_t>(k + 1)] = std::sqrt(2.0 * k + 1) * x * lkk;
-        for (int n = k + 2; n <= nmax; ++n) {
-            const auto un = static_cast<std::size_t>(n);
-            out[un] = ((2.0 * n - 1) * x * out[un - 1] - std::sqrt((n - 1.0) * (n - 1.0) - 1.0 * k * k) * out[un - 2]) /
-                      std::sqrt(1.0 * n * n - 1.0 * k * k);
-        }
-        return out;
-    };
-    same.assign(m * m, 0.0);
-    opposite.assign(m * m, 0.0);
-    for (std::size_t n = 0; n < m; ++n)
-        for (std::size_t j = 0; j < m; ++j) {
-            const auto a = lam(mu[n]), b = lam(mu[j]);
-            for (int l = k; l <= nmax; ++l) {
-                const auto ul = static_cast<std::size_t>(l);
-                const double term = (k == 0 ? 1.0 : 2.0) * (2.0 * l + 1) * std::pow(g, l) * a[ul] * b[ul];
-                same[n * m + j] += term;
-                opposite[n * m + j] += (l + k) % 2 == 0 ? term : -term;
-            }
-        }
-}
-
 ComponentOperators<double> slab(double albedo, double g, double tau, const Quadrature<double>& q, int k) {
-    std::vector<double> same, opposite;
-    hg_matrices(g, q.nodes, k, 2 * static_cast<int>(q.size()) - 1, same, opposite);
-    return stratum::slab_component(stratum::solve_slab_mode(Slab<double>(albedo, g, tau), q, same, opposite, k));
+    const stratum_test::Phase p = stratum_test::henyey_greenstein(g, q.nodes, k, 2 * static_cast<int>(q.size()) - 1);
+    return stratum::slab_component(stratum::solve_slab_mode(Slab<double>(albedo, g, tau), q, p.same, p.opposite, k));
 }
 
 double max_diff(const std::vector<double>& a, const std::vector<double>& b) {

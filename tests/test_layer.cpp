@@ -173,7 +173,8 @@ TEST_CASE("a stack with a rough interior interface stays within [0, 1] and loses
 
 TEST_CASE("the subsurface BRDF is reciprocal within the discretization error") {
     // r_s(wi, wo) = r_s(wo, wi) holds for the exact solution. The discrete one differs by the azimuthal and
-    // ordinate discretization; measured max relative asymmetry at 16 ordinates: see MESSAGE (bound 2%).
+    // ordinate discretization and the renormalization of the operators to the exact hemispherical totals
+    // (which is not reciprocal); measured max relative asymmetry at 16 ordinates 4.3e-3 (bound 1e-2).
     const auto layer = solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), RoughDielectric<double>(0.3, 1.0, 1.4),
                                    RoughDielectric<double>(0.3, 1.4, 1.0), with_ordinates(16));
     double worst = 0;
@@ -185,7 +186,7 @@ TEST_CASE("the subsurface BRDF is reciprocal within the discretization error") {
                 worst = std::fmax(worst, std::fabs(a - b) / std::fmax(a, b));
             }
     MESSAGE("max relative reciprocity error of r_s at M = 16: " << worst);
-    CHECK(worst < 0.02);
+    CHECK(worst < 1e-2);
 }
 
 TEST_CASE("requests: each shortcut agrees with the full solution") {
