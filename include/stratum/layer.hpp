@@ -27,12 +27,16 @@
 // rescaled to their exact values, T_12(mu_0) and (n_out/n_in)^2 T(mu) by reciprocity, so that a lobe the
 // ordinates do not resolve neither creates nor loses energy; the interface operators are renormalized to
 // the hemispherical totals in the same way (LayerOptions::renormalization).
-// A specular (smooth or index-matched) boundary has no BTDF to carry the true angle: the beam refracted
-// to the internal cosine mu' is spread over the four nearest ordinates inside the escape cone with Lagrange
-// weights that conserve its flux (exact when mu' is an ordinate); leaving radiance is interpolated the same
-// way (4 points, ordinates inside the escape cone only). That interpolation is the documented approximation of this path;
-// tests/test_layer.cpp measures it. (The exact treatment, DISORT's analytic beam source with intensities at
-// user angles, is not done yet.)
+// A specular (smooth or index-matched) boundary has no BTDF to carry the true angle. Between two specular
+// faces the unscattered beam is kept out of the discrete fields and computed exactly at the true angle
+// (direct_transmittance, direct_reflectance: Fresnel factors, e^{-tau/mu'}, the bounces between the faces).
+// The light it scatters starts from the beam spread over the ordinates inside the escape cone (Lagrange
+// weights that conserve its flux, 4 points from 8 ordinates on, linear below; mode k scaled by
+// (sin theta' / sin theta_m)^k so that a beam along the normal has no k > 0 modes), scaled to the energy the
+// true beam loses; radiance leaves a smooth face by 4-point interpolation between the ordinates inside its
+// escape cone. That interpolation is the documented approximation of this path: tests/test_layer.cpp and
+// tests/test_layer_monte_carlo.cpp measure it (up to 0.01 near a critical angle). The exact treatment,
+// DISORT's beam source with intensities at user angles, is not done yet.
 //
 // Units: BRDF/BTDF per steradian (cosine not included), albedo and transmittance as fractions of the
 // incident flux, ambient as reflected radiance per unit incident sky radiance.
