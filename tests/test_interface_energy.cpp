@@ -373,21 +373,9 @@ TEST_CASE("renderer sampling: sample() follows pdf() (chi-square) and pdf integr
             const int im = std::min(nm - 1, static_cast<int>(m * nm)), ip = std::min(np - 1, static_cast<int>(ph / pi * np));
             observed[static_cast<std::size_t>((s.wo.z > 0 ? 0 : 1) * nm * np + im * np + ip)] += 1;
         }
-        double chi2 = 0, pool_e = 0, pool_o = 0;
-        int dof = 0;
-        for (std::size_t i = 0; i < expected.size(); ++i) {
-            if (expected[i] < 20) {
-                pool_e += expected[i];
-                pool_o += observed[i];
-                continue;
-            }
-            chi2 += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
-            ++dof;
-        }
-        if (pool_e >= 20) {
-            chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
-            ++dof;
-        }
+        const stratum_test::ChiSquare cs = stratum_test::pooled_chi_square(expected, observed);
+        const double chi2 = cs.value;
+        const int dof = cs.bins;
         INFO("sigma " << c.sigma << " eta " << c.eta << " mu " << c.mu << ": chi2 " << chi2 << " over " << dof << " bins");
         CHECK(chi2 < dof + 5 * std::sqrt(2.0 * dof));
         MESSAGE("sampling chi2 sigma " << c.sigma << " eta " << c.eta << " mu " << c.mu << ": " << chi2 << " / " << dof

@@ -27,3 +27,12 @@ TEST_CASE("ulp_distance works for float") {
     // 1 and 2 differ by 2^23 floats.
     CHECK(ulp_distance(1.0f, 2.0f) == (std::int64_t{1} << 23));
 }
+
+TEST_CASE("pooled_chi_square sums Pearson terms and pools sparse bins") {
+    // Two full bins: (12-10)^2/10 + (28-30)^2/30; two sparse bins (expected 5 + 15 = 20) pooled: (24-20)^2/20.
+    const auto c = stratum_test::pooled_chi_square({10, 30, 5, 15}, {12, 28, 9, 15}, 10);
+    CHECK(c.bins == 3);
+    CHECK(std::fabs(c.value - (0.4 + 4.0 / 30 + 0.8)) < 1e-14);
+    // A pool expecting fewer than the threshold is dropped.
+    CHECK(stratum_test::pooled_chi_square({10, 2}, {10, 7}, 10).bins == 1);
+}

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <type_traits>
+#include <vector>
 
 namespace stratum_test {
 
@@ -33,6 +34,32 @@ std::int64_t ulp_distance(Real a, Real b) {
 template <class Real>
 bool close_rel(Real a, Real b, Real tol) {
     return std::fabs(a - b) <= tol * std::fmax(std::fabs(a), std::fabs(b));
+}
+
+/// Pearson's chi-square of observed counts against expected counts, with every bin expecting fewer than
+/// `min_expected` pooled into one extra bin (kept only if the pool itself expects at least that many).
+struct ChiSquare {
+    double value = 0;
+    int bins = 0;
+};
+inline ChiSquare pooled_chi_square(const std::vector<double>& expected, const std::vector<double>& observed,
+                                   double min_expected = 20) {
+    ChiSquare c;
+    double pool_e = 0, pool_o = 0;
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+        if (expected[i] < min_expected) {
+            pool_e += expected[i];
+            pool_o += observed[i];
+            continue;
+        }
+        c.value += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
+        ++c.bins;
+    }
+    if (pool_e >= min_expected) {
+        c.value += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        ++c.bins;
+    }
+    return c;
 }
 
 }  // namespace stratum_test
