@@ -29,10 +29,11 @@ TEST_CASE("ulp_distance works for float") {
 }
 
 TEST_CASE("pooled_chi_square sums Pearson terms and pools sparse bins") {
-    // Two full bins: (12-10)^2/10 + (28-30)^2/30; two sparse bins (expected 5 + 15 = 20) pooled: (24-20)^2/20.
-    const auto c = stratum_test::pooled_chi_square({10, 30, 5, 15}, {12, 28, 9, 15}, 10);
+    // Threshold 12: full bins 30 and 15 give (28-30)^2/30 + 0; the sparse bins (expected 10 + 5 = 15) are
+    // pooled: (12 + 9 - 15)^2 / 15 = 2.4.
+    const auto c = stratum_test::pooled_chi_square({10, 30, 5, 15}, {12, 28, 9, 15}, 12);
     CHECK(c.bins == 3);
-    CHECK(std::fabs(c.value - (0.4 + 4.0 / 30 + 0.8)) < 1e-14);
+    CHECK(std::fabs(c.value - (4.0 / 30 + 2.4)) < 1e-14);
     // A pool expecting fewer than the threshold is dropped.
     CHECK(stratum_test::pooled_chi_square({10, 2}, {10, 7}, 10).bins == 1);
 }
