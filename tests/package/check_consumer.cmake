@@ -1,12 +1,18 @@
-# Configures, builds and runs tests/package/consumer against stratum.
-#   cmake -DSOURCE_DIR=... -DWORK_DIR=... -DMODE=install|subdirectory [-DCXX=...] -P check_consumer.cmake
-# MODE=install: installs stratum into WORK_DIR/prefix and uses find_package(stratum CONFIG).
-# MODE=subdirectory: the consumer pulls stratum in with add_subdirectory.
+# Configures, builds and runs tests/package/consumer against stratum, as a packager and a user would.
+#   cmake -DSOURCE_DIR=... -DWORK_DIR=... -DMODE=install|subdirectory|fetchcontent [-DCXX=...] -P check_consumer.cmake
+# MODE=install: configures stratum with the packager's flags (-DBUILD_TESTING=OFF, nothing else) while
+#   doctest and Google Benchmark are hidden from find_package, builds, installs into WORK_DIR/prefix, then
+#   builds the consumer with find_package(stratum 0.1 CONFIG), checks that find_package(stratum 0.2) refuses
+#   the 0.1 package, and compiles the consumer once more with the flags of the installed pkg-config file.
+# MODE=subdirectory / fetchcontent: the consumer pulls stratum in with add_subdirectory / FetchContent (an
+#   archive of the working tree, by URL); the consumer's own install must contain nothing of stratum's, and
+#   stratum's tests must not be configured.
 function(run)
   execute_process(COMMAND ${ARGV} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "command failed (${rc}): ${ARGV}\n${out}\n${err}")
   endif()
+  set(last_output "${out}${err}" PARENT_SCOPE)
 endfunction()
 
 file(REMOVE_RECURSE ${WORK_DIR})
@@ -14,17 +20,89 @@ set(compiler "")
 if(CXX)
   set(compiler -DCMAKE_CXX_COMPILER=${CXX})
 endif()
-set(consumer_args -S ${SOURCE_DIR}/tests/package/consumer -B ${WORK_DIR}/consumer ${compiler})
+set(consumer_args -S ${SOURCE_DIR}/tests/package/consumer -B ${WORK_DIR}/consumer ${compiler}
+                  -DCMAKE_INSTALL_PREFIX=${WORK_DIR}/consumer_prefix)
+set(hidden -DCMAKE_DISABLE_FIND_PACKAGE_doctest=ON -DCMAKE_DISABLE_FIND_PACKAGE_benchmark=ON)
 if(MODE STREQUAL "install")
-  run(${CMAKE_COMMAND} -S ${SOURCE_DIR} -B ${WORK_DIR}/stratum ${compiler} -DSTRATUM_BUILD_TESTS=OFF
-      -DSTRATUM_BUILD_BENCHMARKS=OFF -DSTRATUM_BUILD_EXAMPLES=OFF)
+  run(${CMAKE_COMMAND} -S ${SOURCE_DIR} -B ${WORK_DIR}/stratum ${compiler} -DBUILD_TESTING=OFF ${hidden})
+  run(${CMAKE_COMMAND} --build ${WORK_DIR}/stratum)
   run(${CMAKE_COMMAND} --install ${WORK_DIR}/stratum --prefix ${WORK_DIR}/prefix)
+  foreach(file include/stratum/stratum.hpp share/cmake/stratum/stratumConfig.cmake share/pkgconfig/stratum.pc
+               share/doc/stratum/LICENSE)
+    if(NOT EXISTS ${WORK_DIR}/prefix/${file})
+      message(FATAL_ERROR "the install lacks ${file}")
+    endif()
+  endforeach()
   run(${CMAKE_COMMAND} ${consumer_args} -DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix)
+  # SameMinorVersion while 0.x: a request for 0.2 must not accept 0.1.
+  execute_process(COMMAND ${CMAKE_COMMAND} ${consumer_args} -DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix
+                          -DSTRATUM_REQUIRED_VERSION=0.2 -B ${WORK_DIR}/consumer_0.2
+                  RESULT_VARIABLE rc OUTPUT_QUIET ERROR_QUIET)
+  if(rc EQUAL 0)
+    message(FATAL_ERROR "find_package(stratum 0.2) accepted version 0.1")
+  endif()
+  # pkg-config, where it is installed.
+  find_program(pkg_config NAMES pkg-config pkgconf)
+  if(pkg_config)
+    set(ENV{PKG_CONFIG_PATH} ${WORK_DIR}/prefix/share/pkgconfig)
+    run(${pkg_config} --cflags stratum)
+    string(STRIP "${last_output}" cflags)
+    if(NOT cflags MATCHES "-I.*/include$")
+      message(FATAL_ERROR "unexpected pkg-config --cflags stratum: '${cflags}'")
+    endif()
+    separate_arguments(cflags UNIX_COMMAND "${cflags}")
+    set(cxx ${CXX})
+    if(NOT cxx)
+      set(cxx c++)
+    endif()
+    run(${cxx} -std=c++17 ${cflags} ${SOURCE_DIR}/tests/package/consumer/main.cpp -o ${WORK_DIR}/consumer_pc)
+    run(${WORK_DIR}/consumer_pc)
+  endif()
 elseif(MODE STREQUAL "subdirectory")
-  run(${CMAKE_COMMAND} ${consumer_args} -DSTRATUM_SOURCE_DIR=${SOURCE_DIR})
+  run(${CMAKE_COMMAND} ${consumer_args} -DSTRATUM_SOURCE_DIR=${SOURCE_DIR} ${hidden})
+elseif(MODE STREQUAL "fetchcontent")
+  # A release-style archive of the working tree (the files git tracks or would track), fetched by URL.
+  execute_process(COMMAND git -C ${SOURCE_DIR} ls-files --cached --others --exclude-standard
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE files ERROR_QUIET)
+  if(NOT rc EQUAL 0)
+    message(STATUS "SOURCE_DIR is not a git checkout: FetchContent consumer skipped")
+    return()
+  endif()
+  string(REGEX REPLACE "\n$" "" files "${files}")
+  string(REPLACE "\n" ";" files "${files}")
+  set(existing "")
+  foreach(f IN LISTS files)
+    if(EXISTS ${SOURCE_DIR}/${f})
+      list(APPEND existing ${f})
+    endif()
+  endforeach()
+  file(MAKE_DIRECTORY ${WORK_DIR})
+  file(WRITE ${WORK_DIR}/files.txt "")
+  foreach(f IN LISTS existing)
+    file(APPEND ${WORK_DIR}/files.txt "stratum/${f}\n")
+  endforeach()
+  file(CREATE_LINK ${SOURCE_DIR} ${WORK_DIR}/stratum SYMBOLIC)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E tar czf ${WORK_DIR}/stratum.tar.gz --files-from=${WORK_DIR}/files.txt
+                  WORKING_DIRECTORY ${WORK_DIR} RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "could not archive the source tree")
+  endif()
+  run(${CMAKE_COMMAND} ${consumer_args} -DSTRATUM_URL=file://${WORK_DIR}/stratum.tar.gz ${hidden})
 else()
-  message(FATAL_ERROR "MODE must be install or subdirectory, not '${MODE}'")
+  message(FATAL_ERROR "MODE must be install, subdirectory or fetchcontent, not '${MODE}'")
 endif()
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/consumer)
 run(${WORK_DIR}/consumer/consumer)
-message(STATUS "consumer (${MODE}) built and ran")
+run(${CMAKE_COMMAND} --install ${WORK_DIR}/consumer)
+if(NOT MODE STREQUAL "install")
+  if(EXISTS ${WORK_DIR}/consumer_prefix/include OR EXISTS ${WORK_DIR}/consumer_prefix/share)
+    message(FATAL_ERROR "add_subdirectory/FetchContent of stratum installed stratum's files into the consumer's prefix")
+  endif()
+  if(EXISTS ${WORK_DIR}/consumer/CTestTestfile.cmake)
+    file(READ ${WORK_DIR}/consumer/CTestTestfile.cmake ctest_file)
+    if(ctest_file MATCHES "test_")
+      message(FATAL_ERROR "stratum's test suites were configured inside the consumer's build")
+    endif()
+  endif()
+endif()
+message(STATUS "consumer (${MODE}) built, ran and installed")
