@@ -1,0 +1,53 @@
+// libFuzzer target over the layer solver: a slab (albedo, g, thickness) between two faces (rough, smooth or
+// index matched) at a few ordinates. Promises checked: bad parameters throw std::invalid_argument; otherwise
+// every output is finite, reflectance and transmittance lie in [0, 1], and a layer creates no energy.
+#include <stratum/layer.hpp>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "fuzz_input.hpp"
+
+namespace {
+
+using stratum_fuzz::Input;
+using stratum_fuzz::require;
+
+stratum::Boundary<double> face(Input& in, double above, double below) {
+    switch (in.byte() % 3) {
+        case 0: return stratum::RoughDielectric<double>(in.log_in(1e-12, 10), above, below);
+        case 1: return stratum::SmoothDielectric<double>(above, below);
+        default: return stratum::Boundary<double>::index_matched(above);
+    }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    Input in(data, size);
+    try {
+        const double n1 = in.log_in(0.5, 3), n2 = in.log_in(0.5, 3), n3 = in.log_in(0.5, 3);
+        const stratum::Slab<double> slab(in.in(0, 1), in.in(-0.95, 0.99), in.log_in(1e-9, 1e3));
+        const auto top = face(in, n1, n2);
+        const auto bottom = face(in, n2, n3);
+        stratum::LayerOptions options;
+        options.ordinates = 1 + in.byte() % 6;
+        const auto layer = stratum::solve_layer(slab, top, bottom, options);
+        const double mu = in.in(0, 1);
+        if (!(mu > 0 && mu <= 1)) return 0;
+        const auto a = layer.albedo(mu);
+        const double t = layer.transmittance(mu);
+        require(std::isfinite(a.surface) && std::isfinite(a.subsurface) && std::isfinite(t), "finite albedo");
+        require(a.surface >= 0 && a.subsurface >= 0 && t >= 0, "albedo and transmittance >= 0");
+        // Energy: rough faces are discretized (renormalized to their exact totals), so allow their
+        // discretization error; the bound is loose on purpose: it catches blow-ups, not accuracy.
+        require(a.total() + t <= 1 + 1e-3, "no energy created");
+        const stratum::Vec3<double> wi{std::sqrt(1 - mu * mu), 0, mu}, wo{0, std::sqrt(1 - mu * mu), mu};
+        const double f = layer.brdf(wi, wo);
+        require(std::isfinite(f) && f >= 0, "brdf finite and >= 0");
+        const double b = layer.btdf(wi, -wo);
+        require(std::isfinite(b) && b >= 0, "btdf finite and >= 0");
+    } catch (const std::invalid_argument&) {
+    }
+    return 0;
+}
