@@ -42,6 +42,7 @@
 #include <utility>
 #include <vector>
 
+#include "detail/config.hpp"
 #include "detail/validate.hpp"
 #include "fresnel.hpp"
 #include "lambert_w.hpp"
@@ -97,7 +98,7 @@ struct ReflectanceInS {
 };
 
 template <class Real>
-ReflectanceInS<Real> reflectance_in_s(Real s, Real k) noexcept {
+STRATUM_HOST_DEVICE ReflectanceInS<Real> reflectance_in_s(Real s, Real k) noexcept {
     // expm1 only where 1 - e^{-x} needs relative accuracy (small x); elsewhere exp is cheaper and e - 1 loses
     // nothing (exact for e >= 1/2, Sterbenz).
     Real e1, e2, m1, m2;
@@ -120,7 +121,7 @@ ReflectanceInS<Real> reflectance_in_s(Real s, Real k) noexcept {
 /// Total diffuse reflectance R_d(alpha') = (alpha'/2) (1 + e^{-(4/3) A s}) e^{-s}, s = sqrt(3 (1 - alpha')),
 /// for the given boundary. alpha' is clamped to [0, 1] (NaN gives 0). Monotone from R_d(0) = 0 to R_d(1) = 1.
 template <class Real>
-Real total_diffuse_reflectance(Real alpha_prime, const DipoleBoundary<Real>& boundary) noexcept {
+STRATUM_HOST_DEVICE Real total_diffuse_reflectance(Real alpha_prime, const DipoleBoundary<Real>& boundary) noexcept {
     if (!(alpha_prime > 0)) return Real(0);
     if (!(alpha_prime < 1)) return Real(1);
     const Real s = std::sqrt(3 * (1 - alpha_prime));
@@ -145,7 +146,7 @@ struct InverseReflectance {
 };
 
 template <class Real>
-InverseReflectance<Real> invert_reflectance(Real Rd, const DipoleBoundary<Real>& boundary) noexcept {
+STRATUM_HOST_DEVICE InverseReflectance<Real> invert_reflectance(Real Rd, const DipoleBoundary<Real>& boundary) noexcept {
     if (!(Rd > 0)) return {std::sqrt(Real(3)), Real(0)};
     if (!(Rd < 1)) return {Real(0), Real(1)};
     constexpr Real eps = std::numeric_limits<Real>::epsilon();
@@ -202,7 +203,7 @@ InverseReflectance<Real> invert_reflectance(Real Rd, const DipoleBoundary<Real>&
 /// Accuracy (tests): within 3e-16 absolute of the mpmath root over [0, 1] in double (1e-15 asserted), and
 /// within 8 eps relative for alpha' < 1/2. Cost: 2-3 Halley steps, 2 exponentials each, plus one exp.
 template <class Real>
-Real alpha_prime_from_reflectance(Real Rd, const DipoleBoundary<Real>& boundary) noexcept {
+STRATUM_HOST_DEVICE Real alpha_prime_from_reflectance(Real Rd, const DipoleBoundary<Real>& boundary) noexcept {
     return detail::invert_reflectance(Rd, boundary).alpha_prime;
 }
 
@@ -272,7 +273,7 @@ public:
     /// Largest |table - exact| found at the interval midpoints at construction.
     Real max_error() const noexcept { return max_error_; }
     int size() const noexcept { return static_cast<int>(value_.size()); }
-    const DipoleBoundary<Real>& boundary() const noexcept { return boundary_; }
+    STRATUM_HOST_DEVICE const DipoleBoundary<Real>& boundary() const noexcept { return boundary_; }
     /// The tabulated alpha' at R_d = (i / (size - 1))^2.
     const std::vector<Real>& values() const noexcept { return value_; }
 
@@ -335,37 +336,37 @@ public:
         return Dipole(st * inv.s * inv.s / 3, st * inv.alpha_prime, st, inv.s, inv.alpha_prime, boundary);
     }
 
-    Real sigma_a() const noexcept { return sigma_a_; }
-    Real sigma_s_prime() const noexcept { return sigma_s_prime_; }
-    Real sigma_t_prime() const noexcept { return sigma_t_prime_; }
-    Real alpha_prime() const noexcept { return alpha_prime_; }
-    Real sigma_tr() const noexcept { return sigma_tr_; }
+    STRATUM_HOST_DEVICE Real sigma_a() const noexcept { return sigma_a_; }
+    STRATUM_HOST_DEVICE Real sigma_s_prime() const noexcept { return sigma_s_prime_; }
+    STRATUM_HOST_DEVICE Real sigma_t_prime() const noexcept { return sigma_t_prime_; }
+    STRATUM_HOST_DEVICE Real alpha_prime() const noexcept { return alpha_prime_; }
+    STRATUM_HOST_DEVICE Real sigma_tr() const noexcept { return sigma_tr_; }
     /// 1 / sigma_tr (infinite when sigma_a = 0).
-    Real diffuse_mean_free_path() const noexcept {
+    STRATUM_HOST_DEVICE Real diffuse_mean_free_path() const noexcept {
         return sigma_tr_ > 0 ? 1 / sigma_tr_ : std::numeric_limits<Real>::infinity();
     }
-    Real z_r() const noexcept { return z_r_; }
-    Real z_v() const noexcept { return z_v_; }
-    Real A() const noexcept { return boundary_.A; }
-    Real eta() const noexcept { return boundary_.eta; }
-    const DipoleBoundary<Real>& boundary() const noexcept { return boundary_; }
+    STRATUM_HOST_DEVICE Real z_r() const noexcept { return z_r_; }
+    STRATUM_HOST_DEVICE Real z_v() const noexcept { return z_v_; }
+    STRATUM_HOST_DEVICE Real A() const noexcept { return boundary_.A; }
+    STRATUM_HOST_DEVICE Real eta() const noexcept { return boundary_.eta; }
+    STRATUM_HOST_DEVICE const DipoleBoundary<Real>& boundary() const noexcept { return boundary_; }
 
     /// The radial profile R_d(r) (1/length^2): the diffuse exitance at distance r from a unit-power point
     /// of entry. Finite at r = 0, -> 0 as r -> inf (0 for r = inf); even in r.
-    Real Rd(Real r) const noexcept {
+    STRATUM_HOST_DEVICE Real Rd(Real r) const noexcept {
         const Real r2 = r * r;
         if (!(r2 < std::numeric_limits<Real>::infinity())) return Real(0);
         return prefactor_ * (pole(r2, z_r_) + pole(r2, z_v_));
     }
 
     /// int_0^inf R_d(r) 2 pi r dr = total_diffuse_reflectance(alpha', boundary).
-    Real total_reflectance() const noexcept { return total_; }
+    STRATUM_HOST_DEVICE Real total_reflectance() const noexcept { return total_; }
 
     /// A radius with pdf sigma_tr^2 r e^{-sigma_tr r} on [0, inf) (per unit radius; the density over the
     /// plane is that over 2 pi r), by the exact inverse of P(u) = 1 - e^{-u} (1 + u), u = sigma_tr r:
     /// u = -1 - W_{-1}((xi - 1) / e). xi is clamped to [0, 1 - eps/2] (xi = 1 gives a finite ~40 / sigma_tr
     /// in double); xi = 0 gives 0. Without absorption (sigma_tr = 0) the pdf does not exist: returns 0.
-    Real sample_radius(Real xi) const noexcept {
+    STRATUM_HOST_DEVICE Real sample_radius(Real xi) const noexcept {
         if (!(sigma_tr_ > 0)) return Real(0);
         constexpr Real below_one = 1 - std::numeric_limits<Real>::epsilon() / 2;
         xi = xi > 0 ? (xi < below_one ? xi : below_one) : Real(0);
@@ -376,7 +377,7 @@ public:
 
     /// The pdf of sample_radius per unit radius: sigma_tr^2 r e^{-sigma_tr r} for r >= 0, else 0
     /// (0 everywhere when sigma_tr = 0).
-    Real pdf_radius(Real r) const noexcept {
+    STRATUM_HOST_DEVICE Real pdf_radius(Real r) const noexcept {
         if (!(r >= 0) || !(r < std::numeric_limits<Real>::infinity())) return Real(0);
         return sigma_tr_ * sigma_tr_ * r * std::exp(-sigma_tr_ * r);
     }
@@ -398,7 +399,7 @@ private:
 
     /// z (sigma_tr d + 1) e^{-sigma_tr d} / d^3 with d = sqrt(r^2 + z^2); 1/d cubed as a product so that
     /// a huge d underflows to 0 instead of overflowing first.
-    Real pole(Real r2, Real z) const noexcept {
+    STRATUM_HOST_DEVICE Real pole(Real r2, Real z) const noexcept {
         const Real d = std::sqrt(r2 + z * z), inv = 1 / d;
         const Real x = sigma_tr_ * d;
         return z * (x + 1) * std::exp(-x) * inv * inv * inv;

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <utility>
 
+#include "detail/config.hpp"
 #include "detail/validate.hpp"
 #include "quadrature.hpp"
 
@@ -28,7 +29,7 @@ namespace stratum {
 /// differences on the left cancel; k2 is formed as (eta - 1)(eta + 1) for the same reason. eta = 1 gives
 /// exactly 0 at every angle; total internal reflection and grazing incidence (cos_i = 0) give 1.
 template <class Real>
-Real fresnel_dielectric(Real cos_i, Real eta) noexcept {
+STRATUM_HOST_DEVICE Real fresnel_dielectric(Real cos_i, Real eta) noexcept {
     if (cos_i < 0) {
         cos_i = -cos_i;
         eta = Real(1) / eta;

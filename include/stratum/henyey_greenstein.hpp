@@ -42,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "detail/config.hpp"
 #include "detail/elliptic.hpp"
 #include "detail/validate.hpp"
 #include "legendre.hpp"
@@ -65,11 +66,11 @@ public:
     explicit HenyeyGreenstein(Real g) : g_(detail::require_open("g", g, Real(-1), Real(1))) {}
 
     /// The asymmetry parameter (mean cosine of the scattering angle).
-    Real g() const noexcept { return g_; }
+    STRATUM_HOST_DEVICE Real g() const noexcept { return g_; }
 
     /// The density p(cos_theta) over the sphere, 1/sr; integral over the sphere = 1.
     /// cos_theta = dot(propagation in, propagation out), clamped to [-1, 1].
-    Real eval(Real cos_theta) const noexcept {
+    STRATUM_HOST_DEVICE Real eval(Real cos_theta) const noexcept {
         const Real c = std::fmin(Real(1), std::fmax(Real(-1), cos_theta));
         return density(Real(1) - c, Real(1) + c);
     }
@@ -83,7 +84,7 @@ public:
     ///   1 + cos_theta = 2 (1 + g)^2 u1 (1 - g (1 - u1)) / d^2,
     /// with d, 1 + g u1 and 1 - g (1 - u1) each formed as sums of non-negative terms
     /// (e.g. 1 - g (1 - u1) = (1 - g) + g u1 for g > 0); equivalent to the textbook cos = (1 + g^2 - ((1 - g^2) / d)^2) / (2g), which cancels as g -> 0.
-    PhaseSample<Real> sample(Real u1, Real u2) const noexcept {
+    STRATUM_HOST_DEVICE PhaseSample<Real> sample(Real u1, Real u2) const noexcept {
         const Real u = std::fmin(std::fmax(u1, Real(0)), Real(1));
         const Real one_minus_u = Real(1) - u;
         const Real d = g_ >= 0 ? (Real(1) - g_) + Real(2) * g_ * u : (Real(1) + g_) - Real(2) * g_ * one_minus_u;
@@ -102,7 +103,7 @@ public:
 
     /// As sample(u1, u2), around the unit vector `axis` (the incoming propagation direction):
     /// dot(axis, direction) = cos_theta. The frame is the branchless one of Duff et al. (2017).
-    PhaseSample<Real> sample(const Vec3<Real>& axis, Real u1, Real u2) const noexcept {
+    STRATUM_HOST_DEVICE PhaseSample<Real> sample(const Vec3<Real>& axis, Real u1, Real u2) const noexcept {
         PhaseSample<Real> local = sample(u1, u2);
         const Real sign = std::copysign(Real(1), axis.z);
         const Real a = Real(-1) / (sign + axis.z);
@@ -228,17 +229,17 @@ public:
     }
 
 private:
-    static constexpr Real inv_pi() noexcept { return static_cast<Real>(0.318309886183790671537767526745028724L); }
-    static constexpr Real two_pi() noexcept { return static_cast<Real>(6.28318530717958647692528676655900577L); }
+    STRATUM_HOST_DEVICE static constexpr Real inv_pi() noexcept { return static_cast<Real>(0.318309886183790671537767526745028724L); }
+    STRATUM_HOST_DEVICE static constexpr Real two_pi() noexcept { return static_cast<Real>(6.28318530717958647692528676655900577L); }
     /// p from 1 - c and 1 + c; the denominator 1 + g^2 - 2 g c is formed as (1 - g)^2 + 2 g (1 - c)
     /// for g >= 0 and as (1 + g)^2 - 2 g (1 + c) for g < 0: sums of non-negative terms, so the peak
     /// value keeps full relative accuracy as |g| -> 1 (the direct form cancels).
-    Real density(Real one_minus_c, Real one_plus_c) const noexcept {
+    STRATUM_HOST_DEVICE Real density(Real one_minus_c, Real one_plus_c) const noexcept {
         const Real omg = Real(1) - g_, opg = Real(1) + g_;
         const Real denom = g_ >= 0 ? omg * omg + Real(2) * g_ * one_minus_c : opg * opg - Real(2) * g_ * one_plus_c;
         return omg * opg * inv_four_pi() / (denom * std::sqrt(denom));
     }
-    static constexpr Real inv_four_pi() noexcept {
+    STRATUM_HOST_DEVICE static constexpr Real inv_four_pi() noexcept {
         return static_cast<Real>(0.0795774715459476678844418816862571810L);
     }
     Real g_;

@@ -30,6 +30,8 @@
 #include <cmath>
 #include <limits>
 
+#include "detail/config.hpp"
+
 namespace stratum {
 namespace detail {
 
@@ -54,7 +56,7 @@ inline constexpr Real euler_e = static_cast<Real>(2.7182818284590452353602874713
 
 /// 1 + W_{-1} near the branch point: -sum_k |mu_k| p^k, k = 1..13 (Horner), full relative accuracy.
 template <class Real>
-Real lambert_wm1_branch_series_plus_one(Real p) noexcept {
+STRATUM_HOST_DEVICE Real lambert_wm1_branch_series_plus_one(Real p) noexcept {
     // |mu_k| of the branch-point series (tests/data/gen_lambert_w.py prints them to 25 digits).
     constexpr Real c[] = {Real(1),
                           Real(0.3333333333333333333333333L),
@@ -81,7 +83,7 @@ Real lambert_wm1_branch_series_plus_one(Real p) noexcept {
 /// Near the branch point the result keeps full relative accuracy although W_{-1} itself is ~ -1: the
 /// iteration runs on v = 1 + w. (The radial sampler needs exactly this: u = -(1 + W_{-1}).)
 template <class Real>
-Real lambert_wm1_plus_one(Real x, Real q) noexcept {
+STRATUM_HOST_DEVICE Real lambert_wm1_plus_one(Real x, Real q) noexcept {
     constexpr Real eps = std::numeric_limits<Real>::epsilon();
     if (!(q > 0)) return Real(0);                                           // the branch point
     if (!(x < 0)) return -std::numeric_limits<Real>::infinity();            // x -> 0-
@@ -127,7 +129,7 @@ Real lambert_wm1_plus_one(Real x, Real q) noexcept {
 /// W_{-1}(0-) = -inf, returned for x = 0. Outside [-1/e, 0] (or NaN) the result is NaN.
 /// Accuracy: a few ulp of Real everywhere, including next to the branch point (see the header comment).
 template <class Real>
-Real lambert_wm1(Real x) noexcept {
+STRATUM_HOST_DEVICE Real lambert_wm1(Real x) noexcept {
     using IE = detail::InvE<Real>;
     if (!(x >= -IE::hi && x <= 0)) return std::numeric_limits<Real>::quiet_NaN();
     // q = e (x + 1/e): exact sum x + hi for x in [-hi, -hi/2], then the low part; one rounding in the product.

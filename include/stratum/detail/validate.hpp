@@ -4,16 +4,67 @@
 // never check. A rejected value raises std::invalid_argument whose message names the
 // parameter, its value and the allowed range, e.g.
 //   "stratum: g = 1 is outside the allowed range (-1, 1)".
-// Not part of the public API.
+// Built without exceptions (-fno-exceptions), the message goes instead to the handler set with
+// stratum::set_invalid_parameter_handler, and then the program aborts: construction never goes on
+// with a bad value. The detail:: functions are not part of the public API.
 #pragma once
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
+#include "config.hpp"
+
+namespace stratum {
+
+/// Receives the message of a rejected parameter in builds without exceptions (e.g. to log it) before
+/// the program aborts. Not used when exceptions are enabled.
+using InvalidParameterHandler = void (*)(const char* message);
+
+namespace detail {
+inline InvalidParameterHandler& invalid_parameter_handler_slot() noexcept {
+    static InvalidParameterHandler handler = nullptr;
+    return handler;
+}
+}  // namespace detail
+
+/// Sets the handler for builds without exceptions; returns the previous one (nullptr: print to stderr).
+inline InvalidParameterHandler set_invalid_parameter_handler(InvalidParameterHandler handler) noexcept {
+    InvalidParameterHandler previous = detail::invalid_parameter_handler_slot();
+    detail::invalid_parameter_handler_slot() = handler;
+    return previous;
+}
+
+}  // namespace stratum
+
 namespace stratum::detail {
+
+/// Throws std::invalid_argument(message), or without exceptions reports it and aborts.
+[[noreturn]] inline void fail_invalid_argument(const std::string& message) {
+#if STRATUM_EXCEPTIONS
+    throw std::invalid_argument(message);
+#else
+    if (InvalidParameterHandler handler = invalid_parameter_handler_slot()) {
+        handler(message.c_str());
+    } else {
+        std::fprintf(stderr, "%s\n", message.c_str());
+    }
+    std::abort();
+#endif
+}
+
+/// As fail_invalid_argument, for a numerical method that cannot proceed (std::domain_error).
+[[noreturn]] inline void fail_domain_error(const std::string& message) {
+#if STRATUM_EXCEPTIONS
+    throw std::domain_error(message);
+#else
+    fail_invalid_argument(message);
+#endif
+}
 
 /// Formats a value with enough digits to round-trip (so 1 - 1e-17 does not print as "1").
 template <class Real>
@@ -24,11 +75,11 @@ std::string format_value(Real value) {
     return out.str();
 }
 
-/// Throws std::invalid_argument "stratum: <name> = <value> is outside the allowed range <range>".
+/// Fails with "stratum: <name> = <value> is outside the allowed range <range>" (fail_invalid_argument).
 template <class Real>
 [[noreturn]] void throw_out_of_range(const char* name, Real value, const std::string& range) {
-    throw std::invalid_argument(std::string("stratum: ") + name + " = " + format_value(value) +
-                                " is outside the allowed range " + range);
+    fail_invalid_argument(std::string("stratum: ") + name + " = " + format_value(value) +
+                          " is outside the allowed range " + range);
 }
 
 /// Requires lo < value < hi (open interval). NaN always fails.
