@@ -344,7 +344,8 @@ TEST_CASE("float, double and long double instantiations agree") {
 }
 
 TEST_CASE("invalid parameters are rejected with messages naming them") {
-    CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.0, 1.0, 1.4), doctest::Contains("sigma"), std::invalid_argument);
+    // sigma = 0 is the smooth limit (test_interface_smooth_limit.cpp); negative, NaN and infinite sigma are not.
+    CHECK_THROWS_WITH_AS(RoughDielectric<double>(-0.1, 1.0, 1.4), doctest::Contains("sigma"), std::invalid_argument);
     CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, -1.0, 1.4), doctest::Contains("eta_above"), std::invalid_argument);
     CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, 1.0, std::numeric_limits<double>::quiet_NaN()),
                          doctest::Contains("eta_below"), std::invalid_argument);

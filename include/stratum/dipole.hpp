@@ -43,6 +43,7 @@
 #include <vector>
 
 #include "detail/config.hpp"
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "fresnel.hpp"
 #include "lambert_w.hpp"
@@ -393,7 +394,7 @@ private:
         sigma_tr_ = st * s;
         z_r_ = 1 / st;
         z_v_ = z_r_ * (1 + Real(4) / 3 * boundary_.A);
-        prefactor_ = alpha_prime_ / (4 * Real(3.141592653589793238462643383279502884L));
+        prefactor_ = alpha_prime_ * detail::inv_four_pi_v<Real>;
         total_ = total_diffuse_reflectance(alpha_prime_, boundary_);
     }
 

@@ -44,6 +44,7 @@
 
 #include "detail/config.hpp"
 #include "detail/elliptic.hpp"
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "legendre.hpp"
 #include "vec3.hpp"
@@ -97,7 +98,7 @@ public:
         const Real one_plus_c = Real(2) * opg * opg * u * b * inv_d2;
         const Real c = std::fmin(Real(1), std::fmax(Real(-1), (one_plus_c - one_minus_c) / Real(2)));
         const Real sin_theta = std::sqrt(std::fmax(Real(0), one_minus_c * one_plus_c));
-        const Real phi = two_pi() * u2;
+        const Real phi = detail::two_pi_v<Real> * u2;
         return {{sin_theta * std::cos(phi), sin_theta * std::sin(phi), c}, c, density(one_minus_c, one_plus_c)};
     }
 
@@ -182,7 +183,7 @@ public:
             return;
         }
         const auto ell = detail::complete_elliptic(Real(2) * E / d_plus, d_minus / d_plus);  // m^2, 1 - m^2
-        const Real p0 = pref * inv_pi() * Real(2) * ell.E / (d_minus * std::sqrt(d_plus));
+        const Real p0 = pref * detail::inv_pi_v<Real> * Real(2) * ell.E / (d_minus * std::sqrt(d_plus));
         out[0] = p0;
         if (modes == 1) return;
         const Real zm1 = d_minus / E, zp1 = d_plus / E;  // z - 1, z + 1
@@ -229,18 +230,13 @@ public:
     }
 
 private:
-    STRATUM_HOST_DEVICE static constexpr Real inv_pi() noexcept { return static_cast<Real>(0.318309886183790671537767526745028724L); }
-    STRATUM_HOST_DEVICE static constexpr Real two_pi() noexcept { return static_cast<Real>(6.28318530717958647692528676655900577L); }
     /// p from 1 - c and 1 + c; the denominator 1 + g^2 - 2 g c is formed as (1 - g)^2 + 2 g (1 - c)
     /// for g >= 0 and as (1 + g)^2 - 2 g (1 + c) for g < 0: sums of non-negative terms, so the peak
     /// value keeps full relative accuracy as |g| -> 1 (the direct form cancels).
     STRATUM_HOST_DEVICE Real density(Real one_minus_c, Real one_plus_c) const noexcept {
         const Real omg = Real(1) - g_, opg = Real(1) + g_;
         const Real denom = g_ >= 0 ? omg * omg + Real(2) * g_ * one_minus_c : opg * opg - Real(2) * g_ * one_plus_c;
-        return omg * opg * inv_four_pi() / (denom * std::sqrt(denom));
-    }
-    STRATUM_HOST_DEVICE static constexpr Real inv_four_pi() noexcept {
-        return static_cast<Real>(0.0795774715459476678844418816862571810L);
+        return omg * opg * detail::inv_four_pi_v<Real> / (denom * std::sqrt(denom));
     }
     Real g_;
 };

@@ -46,6 +46,11 @@
 // exact-matching identity is the limit only for masking_only. Measured (sigma = 0.3, height-correlated):
 // T(eta = 1 + 1e-9) = 0.99999992 at mu_i = 0.77, 0.80 at mu_i = 0.2, against 1 at eta = 1 exactly.
 //
+// Smooth limit (sigma < RoughDielectric::smooth_sigma = 1e-7, sigma = 0 included; see there for the choice):
+// the interface is the smooth dielectric (SmoothDielectric). As for index matching, brdf, btdf and pdf return
+// 0, sample returns the mirror or Snell direction as a delta sample chosen with probability F or 1 - F, and
+// albedo returns {F, 1 - F}. Every value is finite for every sigma >= 0 (tests/test_interface_smooth_limit.cpp).
+//
 // Energy (tests/test_interface_energy.cpp): with masking_only, R + T equals 1 minus the facet-scattered light
 // sent into the wrong hemisphere, as measured by a facet-level Monte Carlo (e.g. 0.63% at sigma = 0.3,
 // eta = 1.4, 40 deg; 2.9% at sigma = 1, 60 deg). The default shadowing loses 1 - (R + T) = 0.89% (sigma = 0.3,
@@ -64,6 +69,8 @@
 #include <utility>
 #include <vector>
 
+#include "detail/config.hpp"
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "fresnel.hpp"
 #include "microfacet.hpp"
@@ -77,8 +84,18 @@ enum class Shadowing { height_correlated, separable, masking_only };
 
 /// Result of RoughDielectric::sample. value = f(wi, wo) (no cosine) and pdf its solid-angle density, so the
 /// Monte Carlo weight is value |wo.z| / pdf. A failed sample (direction into the wrong hemisphere, wi on the
-/// horizon) has pdf = 0 and value = 0 and must be discarded. A delta sample (index-matched interface) has
-/// delta = true, pdf = 1 and value = 1 / |wo.z| (weight 1).
+/// horizon) has pdf = 0 and value = 0 and must be discarded. A delta sample (index-matched or smooth interface)
+/// has delta = true, pdf = the probability of choosing that lobe and value = pdf / |wo.z| (the coefficient of
+/// the solid-angle delta in wo), so the weight value |wo.z| / pdf is exactly the lobe's power fraction per
+/// selection probability, i.e. 1:
+/// - index matched: wo = -wi, pdf = 1;
+/// - smooth (RoughDielectric::smooth()): mirror direction with pdf = F, or Snell direction with pdf = 1 - F
+///   (F = fresnel_dielectric(|wi.z|, eta_t / eta_i); under total internal reflection the mirror, pdf = 1).
+/// The weight is a power (flux) ratio, as for the rough lobes, whose weight G2 / G1(wi) tends to 1 as
+/// sigma -> 0: sample() estimates int f(wi, wo) |wo.z| dwo over wo. A camera path tracer that passes the
+/// viewer's direction as wi (reciprocity) must, for transmission (rough or smooth), multiply the weight by
+/// (n_viewer / n_light)^2 (generalized reciprocity btdf(wi, wo) / eta_o^2 = btdf(wo, wi) / eta_i^2), the
+/// radiance factor of SmoothDielectric::radiance_transmittance.
 template <class Real>
 struct BsdfSample {
     Vec3<Real> wo{};
@@ -86,7 +103,7 @@ struct BsdfSample {
     Real pdf = 0;
     bool reflected = false;
     bool delta = false;
-    bool valid() const noexcept { return pdf > 0; }
+    STRATUM_HOST_DEVICE bool valid() const noexcept { return pdf > 0; }
 };
 
 /// Hemispherical reflectance and transmittance (power fractions) for one incident direction.
@@ -101,7 +118,7 @@ namespace detail {
 /// Joint masking-shadowing for the Smith Lambdas li (incident) and lo (outgoing), as a function of the
 /// form and of whether the two directions are on opposite sides (transmission).
 template <class W>
-W smith_g2(W li, W lo, Shadowing form, bool transmission) noexcept {
+STRATUM_HOST_DEVICE W smith_g2(W li, W lo, Shadowing form, bool transmission) noexcept {
     const W inf = std::numeric_limits<W>::infinity();
     switch (form) {
         case Shadowing::masking_only: return 1 / (1 + li);
@@ -110,15 +127,18 @@ W smith_g2(W li, W lo, Shadowing form, bool transmission) noexcept {
         default:
             if (!transmission) return 1 / (1 + li + lo);
             if (li == inf || lo == inf) return W(0);
-            // B(1 + li, 1 + lo) = Gamma(1 + li) Gamma(1 + lo) / Gamma(2 + li + lo)
-            return std::exp(std::lgamma(1 + li) + std::lgamma(1 + lo) - std::lgamma(2 + li + lo));
+            // B(1 + li, 1 + lo) = Gamma(1 + li) Gamma(1 + lo) / Gamma(2 + li + lo) (thread-safe log-gammas,
+            // detail/math.hpp). B <= B(1 + m, 1 + m) < 4^{-m}, m = min(li, lo): 0 in every type for m > 1e15,
+            // where the log-gammas would overflow (inf - inf).
+            if (!(std::fmin(li, lo) <= W(1e15))) return W(0);
+            return std::exp(log_beta1(li, lo));
     }
 }
 
 /// G2 / G1(i) with G1(i) = 1 / (1 + li), finite also at li = inf (grazing incidence); used where the visible
 /// normal distribution (which contains G1(i)) is the integration measure.
 template <class W>
-W smith_g2_over_g1(W li, W lo, Shadowing form, bool transmission) noexcept {
+STRATUM_HOST_DEVICE W smith_g2_over_g1(W li, W lo, Shadowing form, bool transmission) noexcept {
     const W inf = std::numeric_limits<W>::infinity();
     switch (form) {
         case Shadowing::masking_only: return W(1);
@@ -128,24 +148,10 @@ W smith_g2_over_g1(W li, W lo, Shadowing form, bool transmission) noexcept {
             if (!transmission) return li == inf ? (lo == inf ? W(0) : W(1)) : 1 / (1 + lo / (1 + li));
             if (lo == inf) return W(0);
             if (li == inf) return lo == 0 ? W(1) : W(0);
-            return std::exp(std::lgamma(1 + li) + std::lgamma(1 + lo) - std::lgamma(2 + li + lo) + std::log1p(li));
+            // (1 + li) B(1 + li, 1 + lo) < (1 + li) 4^{-m}, m = min(li, lo): 0 in every type for m > 1e15.
+            if (!(std::fmin(li, lo) <= W(1e15))) return W(0);
+            return std::exp(std::log1p(li) + log_beta1(li, lo));
     }
-}
-
-/// p[0] + p[1] t + ... + p[n - 1] t^{n-1}, n a multiple of 4, as four interleaved Horner chains in t^4
-/// (p0(t^4) + t p1(t^4) + t^2 (p2(t^4) + t p3(t^4))): a quarter of Horner's dependency chain, for |t| << 1.
-template <class W, int n>
-W polynomial4(const W* p, W t) noexcept {
-    static_assert(n % 4 == 0, "pad the coefficients to a multiple of 4");
-    const W t2 = t * t, t4 = t2 * t2;
-    W r0 = p[n - 4], r1 = p[n - 3], r2 = p[n - 2], r3 = p[n - 1];
-    for (int j = n - 8; j >= 0; j -= 4) {
-        r0 = r0 * t4 + p[j];
-        r1 = r1 * t4 + p[j + 1];
-        r2 = r2 * t4 + p[j + 2];
-        r3 = r3 * t4 + p[j + 3];
-    }
-    return r0 + t * r1 + t2 * (r2 + t * r3);
 }
 
 /// Smith's Lambda of a Gaussian surface through phi(a) = a Lambda(a) = (e^{-a^2}/sqrt(pi) - a erfc(a)) / 2,
@@ -167,13 +173,13 @@ public:
     }
 
     /// phi(a) = a Lambda(a) for 0 <= a < a_max (callers test a >= a_max, where Lambda is 0, themselves).
-    W phi(W a) const noexcept {
+    STRATUM_HOST_DEVICE W phi(W a) const noexcept {
         const int j = std::min(static_cast<int>(a * 4), pieces - 1);
         const W t = a - (static_cast<W>(j) + W(0.5)) / 4;
         return polynomial4<W, padded>(coef_[j], t);
     }
     /// Lambda(a) for 0 < a < a_max.
-    W lambda(W a) const noexcept { return phi(a) / a; }
+    STRATUM_HOST_DEVICE W lambda(W a) const noexcept { return phi(a) / a; }
 
 private:
     SmithLambdaTable() {
@@ -209,8 +215,8 @@ public:
         static const HalfRuleTable table;
         return table;
     }
-    const W* nodes(int n) const noexcept { return nodes_[n]; }
-    const W* weights(int n) const noexcept { return weights_[n]; }
+    STRATUM_HOST_DEVICE const W* nodes(int n) const noexcept { return nodes_[n]; }
+    STRATUM_HOST_DEVICE const W* weights(int n) const noexcept { return weights_[n]; }
 
 private:
     HalfRuleTable() {
@@ -226,28 +232,9 @@ private:
     W weights_[max_n + 1][max_n] = {};
 };
 
-/// ln Gamma(z) - ln Gamma(z + b) for z >= 1, b >= 0, without the cancellation of two lgamma calls:
-/// z is shifted to >= 10 by the recurrence, then Stirling's series (five terms; the first omitted one is
-/// below 2e-14 / z^11) with (z - 1/2) ln z - (y - 1/2) ln y = -(y - 1/2) log1p(b / z) - b ln z, y = z + b.
-template <class W>
-W log_gamma_ratio(W z, W b) noexcept {
-    W p = 1, q = 1;
-    while (z < W(10)) {
-        p *= z;
-        q *= z + b;
-        z += 1;
-    }
-    const W y = z + b;
-    auto series = [](W x) {
-        const W r = 1 / x, r2 = r * r;
-        return r * (W(1) / 12 - r2 * (W(1) / 360 - r2 * (W(1) / 1260 - r2 * (W(1) / 1680 - r2 * (W(1) / 1188)))));
-    };
-    return -(y - W(0.5)) * std::log1p(b / z) - b * std::log(z) + b + series(z) - series(y) + std::log(q / p);
-}
-
 /// Digamma psi(x) and trigamma psi'(x) for x >= 1: recurrence to x >= 10, then the asymptotic series.
 template <class W>
-void digamma_trigamma(W x, W& psi, W& psi1) noexcept {
+STRATUM_HOST_DEVICE void digamma_trigamma(W x, W& psi, W& psi1) noexcept {
     W a = 0, b = 0;
     while (x < W(10)) {
         a -= 1 / x;
@@ -263,7 +250,7 @@ void digamma_trigamma(W x, W& psi, W& psi1) noexcept {
 /// the Euler-Maclaurin tail at a = x + 10, a^{1-k}/(k-1) + a^{-k}/2 + sum_{m=1..4} B_2m/(2m)! (k)_{2m-1}
 /// a^{-k-2m+1} (relative error < 1e-19 for k <= 20).
 template <class W>
-void hurwitz_zeta(W x, int K, W* out) noexcept {
+STRATUM_HOST_DEVICE void hurwitz_zeta(W x, int K, W* out) noexcept {
     for (int k = 2; k <= K; ++k) out[k] = 0;
     for (int j = 0; j < 10; ++j) {
         const W inv = 1 / (x + static_cast<W>(j));
@@ -347,7 +334,7 @@ Albedo<W> rough_albedo(W sigma, W mu, W eta, Shadowing form, int n) {
     constexpr int beta_padded = (beta_terms + 4) / 4 * 4;
     W beta_log0 = 0, beta_coef[beta_padded] = {};
     if (!li_big) {
-        beta_log0 = std::log1p(li) + std::lgamma(one_li);
+        beta_log0 = std::log1p(li) + log_gamma(one_li);
         W c[beta_terms + 1] = {};
         W psi, psi1;
         digamma_trigamma(2 + li, psi, psi1);
@@ -382,7 +369,7 @@ Albedo<W> rough_albedo(W sigma, W mu, W eta, Shadowing form, int n) {
         // li = inf: (1 + li)^{-lo} -> 0 for every lo > 0 (o = 1 exactly has measure zero).
         if (li_inf || !(lo < W(1e15))) return W(0);
         if (lo == 0) return W(1);
-        if (li_big) return std::exp(std::lgamma(1 + lo) + log_gamma_ratio(2 + li, lo));
+        if (li_big) return std::exp(log_gamma(1 + lo) + log_gamma_ratio(2 + li, lo));
         if (lo < beta_series_max) {
             return polynomial4<W, beta_padded>(beta_coef, lo);
         }
@@ -692,29 +679,58 @@ Albedo<W> rough_albedo(W sigma, W mu, W eta, Shadowing form, int n) {
 
 /// Rough dielectric interface: a Gaussian microsurface of RMS slope sigma between media of indices
 /// eta_above (z > 0) and eta_below. All evaluation functions are noexcept and allocation-free.
+/// sigma = 0 (and any sigma below smooth_sigma) is the smooth limit: see smooth().
 template <class Real>
 class RoughDielectric {
 public:
-    /// sigma: RMS slope in (0, inf); eta_above, eta_below: refractive indices in (0, inf).
-    /// Throws std::invalid_argument naming the offending parameter.
+    /// Below this RMS slope the interface is treated as exactly smooth (smooth()). The same value for every
+    /// type, chosen above every arithmetic limit and below anything physical:
+    /// - arithmetic: D's peak 1 / (2 pi sigma^2) and the BTDF and pdf peaks, which grow like
+    ///   eta_o^2 / ((eta_o - eta_i)^2 sigma^2) (eta_o, eta_i adjacent floating-point numbers at worst), are
+    ///   Real values (D and pdf are computed in Real; Lambda, the brdf/btdf products, sampling and albedo in
+    ///   detail::wide_t). They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13
+    ///   in float (2.2e-20 for D alone). Meaning is lost earlier in float: a unit vector resolves
+    ///   ~2^-24 = 6e-8 rad, so a lobe narrower than ~1e-7 lies within an ulp or two of its centre and its
+    ///   values at representable directions are noise.
+    /// - physical: a geometric-optics lobe narrower than the diffraction limit lambda / L means nothing; at
+    ///   lambda = 0.5 um that is 1e-7 rad for a 5 m patch. Polished surfaces have RMS slopes >= ~1e-4, and no
+    ///   renderer resolves 1e-7 rad (a 4K image of a 1 degree field has 4e-6 rad pixels).
+    /// Continuity (tests/test_interface_smooth_limit.cpp): at sigma = smooth_sigma the rough albedo equals the
+    /// Fresnel values within 1.9e-9 (the quadrature's error; the model's own difference is O(sigma^2) = 1e-14)
+    /// at cosines 1e-3 or more from grazing and from a critical angle; within 1e-3 of a critical cosine the
+    /// square-root onset of F is smeared by O(sqrt(sigma)) (1.1e-3 at n 1 | 1.5, 6e-3 at 1 | 1.0001).
+    static constexpr Real smooth_sigma = Real(1) / Real(10000000);  // 1e-7 correctly rounded in every type
+
+    /// sigma: RMS slope in [0, inf) (0: the smooth limit); eta_above, eta_below: refractive indices in (0, inf).
+    /// Throws std::invalid_argument naming the offending parameter (NaN, negative or infinite sigma).
     RoughDielectric(Real sigma, Real eta_above, Real eta_below, Shadowing shadowing = Shadowing::height_correlated)
-        : distribution_(sigma),
+        : sigma_(detail::require_nonnegative("sigma", sigma)),
+          distribution_(sigma_ < smooth_sigma ? smooth_sigma : sigma_),
           eta_above_(detail::require_positive("eta_above", eta_above)),
           eta_below_(detail::require_positive("eta_below", eta_below)),
           shadowing_(shadowing) {}
 
-    const Beckmann<Real>& distribution() const noexcept { return distribution_; }
-    Real sigma() const noexcept { return distribution_.sigma(); }
-    Real eta_above() const noexcept { return eta_above_; }
-    Real eta_below() const noexcept { return eta_below_; }
-    Shadowing shadowing() const noexcept { return shadowing_; }
+    /// The Beckmann distribution of the facets. For a smooth interface (smooth()) a placeholder of RMS slope
+    /// smooth_sigma, which this class never evaluates (Beckmann needs sigma > 0).
+    STRATUM_HOST_DEVICE const Beckmann<Real>& distribution() const noexcept { return distribution_; }
+    /// The RMS slope as constructed (0 allowed).
+    STRATUM_HOST_DEVICE Real sigma() const noexcept { return sigma_; }
+    STRATUM_HOST_DEVICE Real eta_above() const noexcept { return eta_above_; }
+    STRATUM_HOST_DEVICE Real eta_below() const noexcept { return eta_below_; }
+    STRATUM_HOST_DEVICE Shadowing shadowing() const noexcept { return shadowing_; }
     /// True when eta_above == eta_below exactly: the interface is invisible (see the header comment).
-    bool index_matched() const noexcept { return eta_above_ == eta_below_; }
+    STRATUM_HOST_DEVICE bool index_matched() const noexcept { return eta_above_ == eta_below_; }
+    /// True when sigma < smooth_sigma (sigma = 0 included): the interface is the smooth dielectric, a specular
+    /// reflector and refractor. brdf, btdf, eval and pdf return 0 (a delta cannot be evaluated); sample returns
+    /// the mirror or Snell direction as a delta sample (see BsdfSample); albedo returns the Fresnel values
+    /// {F, 1 - F}, exactly SmoothDielectric's. Index matching takes precedence (identity transmission).
+    STRATUM_HOST_DEVICE bool smooth() const noexcept { return sigma_ < smooth_sigma; }
 
-    /// BRDF r(wi, wo) for wi, wo in the same hemisphere (either one); 0 otherwise and for index matching.
+    /// BRDF r(wi, wo) for wi, wo in the same hemisphere (either one); 0 otherwise, for index matching and
+    /// for a smooth interface.
     /// Symmetric, brdf(wi, wo) == brdf(wo, wi), for every shadowing model but Shadowing::masking_only.
-    Real brdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
-        if (!(wi.z * wo.z > 0) || index_matched()) return Real(0);
+    STRATUM_HOST_DEVICE Real brdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        if (!(wi.z * wo.z > 0) || index_matched() || smooth()) return Real(0);
         const bool below = wi.z < 0;
         if (below) {
             wi.z = -wi.z;
@@ -727,16 +743,19 @@ public:
         const Vec3<Real> h = (Real(1) / std::sqrt(len2)) * sum;
         const Real c = dot(wi, h);
         if (!(c > 0) || !(dot(wo, h) > 0)) return Real(0);
+        const Real D = distribution_.D(h);
+        if (!(D > 0)) return Real(0);  // (spares the Lambdas, and 0 * inf at grazing directions)
         const Real F = fresnel_dielectric(c, eta_t / eta_i);
-        const Real G = g2(wi.z, wo.z, false);
-        return F * distribution_.D(h) * G / (4 * wi.z * wo.z);
+        using W = detail::wide_t<Real>;
+        return static_cast<Real>(static_cast<W>(F) * static_cast<W>(D) * g2_over_cosines(wi.z, wo.z, false) / 4);
     }
 
     /// BTDF t(wi, wo) for wi, wo in opposite hemispheres (light from wi's medium into wo's medium); 0 for
-    /// the same hemisphere, for configurations no facet refracts, and for index matching (a delta).
+    /// the same hemisphere, for configurations no facet refracts, for index matching and for a smooth
+    /// interface (deltas).
     /// Generalized reciprocity: btdf(wi, wo) / eta_o^2 == btdf(wo, wi) / eta_i^2.
-    Real btdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
-        if (!(wi.z * wo.z < 0) || index_matched()) return Real(0);
+    STRATUM_HOST_DEVICE Real btdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        if (!(wi.z * wo.z < 0) || index_matched() || smooth()) return Real(0);
         const bool below = wi.z < 0;
         if (below) {
             wi.z = -wi.z;
@@ -750,14 +769,19 @@ public:
         if (h.z < 0) h = -h;
         const Real ci = dot(wi, h), co = dot(wo, h);
         if (!(ci > 0) || !(co < 0)) return Real(0);
+        const Real D = distribution_.D(h);
+        if (!(D > 0)) return Real(0);  // (spares the Lambdas, and 0 * inf at grazing directions)
         const Real F = fresnel_dielectric(ci, eta_o / eta_i);
-        const Real G = g2(wi.z, -wo.z, true);
-        // (eta_i (i.h) + eta_o (o.h))^2 == |v|^2, since h = +-v / |v|.
-        return ci * (-co) / (wi.z * (-wo.z)) * eta_o * eta_o * (1 - F) * distribution_.D(h) * G / len2;
+        // (eta_i (i.h) + eta_o (o.h))^2 == |v|^2, since h = +-v / |v|. The product in the wide type: for float
+        // its factors can leave float's range at grazing directions although the value does not.
+        using W = detail::wide_t<Real>;
+        const W eo = eta_o;
+        return static_cast<Real>(static_cast<W>(ci) * static_cast<W>(-co) * eo * eo * static_cast<W>(1 - F) *
+                                 static_cast<W>(D) * g2_over_cosines(wi.z, -wo.z, true) / static_cast<W>(len2));
     }
 
     /// brdf or btdf, whichever the hemispheres of wi and wo call for.
-    Real eval(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+    STRATUM_HOST_DEVICE Real eval(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
         return wi.z * wo.z > 0 ? brdf(wi, wo) : btdf(wi, wo);
     }
 
@@ -768,7 +792,7 @@ public:
     ///   cos_dphi: cosine of the azimuth difference between the two propagation directions, so specular
     ///             reflection and refraction lie at dphi = 0.
     /// Returns f (per steradian, cosine NOT included); mu_in * mu_out > 0 is transmission, < 0 reflection.
-    Real eval_propagation(Real mu_in, Real mu_out, Real cos_dphi) const noexcept {
+    STRATUM_HOST_DEVICE Real eval_propagation(Real mu_in, Real mu_out, Real cos_dphi) const noexcept {
         const Real s_in = std::sqrt(std::fmax(Real(0), (1 - mu_in) * (1 + mu_in)));
         const Real s_out = std::sqrt(std::fmax(Real(0), (1 - mu_out) * (1 + mu_out)));
         const Real c = std::fmin(std::fmax(cos_dphi, Real(-1)), Real(1));
@@ -781,7 +805,9 @@ public:
     /// Samples wo given wi: a facet normal from the visible-normal distribution of wi (three uniforms
     /// u_lobe, u1, u2 in [0, 1)), then reflection with probability F and refraction otherwise. See
     /// BsdfSample for the meaning of the result; value and pdf are those of eval and pdf at (wi, wo).
-    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2) const noexcept {
+    /// Smooth interface (smooth()): the mirror direction if u_lobe < F(|wi.z|) (always under total internal
+    /// reflection), else the Snell direction, as a delta sample (u1, u2 unused).
+    STRATUM_HOST_DEVICE BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2) const noexcept {
         BsdfSample<Real> out;
         if (!(wi.z != 0)) return out;
         if (index_matched()) {
@@ -793,6 +819,7 @@ public:
         }
         const bool below = wi.z < 0;
         const Real eta_i = below ? eta_below_ : eta_above_, eta_t = below ? eta_above_ : eta_below_;
+        if (smooth()) return sample_smooth(wi, eta_t / eta_i, u_lobe);
         Vec3<Real> w = wi;
         if (below) w.z = -w.z;
         const Vec3<Real> h = distribution_.sample_visible_normal(w, u1, u2);
@@ -825,9 +852,9 @@ public:
 
     /// Solid-angle density of sample(wi, ...) at wo: visible-normal density times the selection
     /// probability (F or 1 - F) times the Jacobian dh/dwo (1 / (4 (wo.h)) for reflection,
-    /// eta_o^2 |wo.h| / (eta_i (wi.h) + eta_o (wo.h))^2 for refraction). 0 for index matching (delta).
-    Real pdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
-        if (!(wi.z != 0) || !(wo.z != 0) || index_matched()) return Real(0);
+    /// eta_o^2 |wo.h| / (eta_i (wi.h) + eta_o (wo.h))^2 for refraction). 0 for index matching and smooth (deltas).
+    STRATUM_HOST_DEVICE Real pdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        if (!(wi.z != 0) || !(wo.z != 0) || index_matched() || smooth()) return Real(0);
         const bool below = wi.z < 0;
         if (below) {
             wi.z = -wi.z;
@@ -863,7 +890,8 @@ public:
     /// error). Agreement with the
     /// direct integral of brdf/btdf over wo within that integral's own error (<= 5e-7, test_interface_energy).
     /// Values of `nodes` above 32 are treated as 32. Height-correlated transmission at mu_i = 0 exactly
-    /// (Lambda(wi) = inf) is 0, the limit (1 + li)^{-lo} -> 0 for every lo > 0.
+    /// (Lambda(wi) = inf) is 0, the limit (1 + li)^{-lo} -> 0 for every lo > 0. Smooth interface (smooth()):
+    /// exactly {F, 1 - F}, F = fresnel_dielectric(|mu_i|, eta_t / eta_i) (SmoothDielectric's values).
     /// Cost (double, one core, 16 nodes; BM_interface_albedo): 0.1 - 0.25 ms for sigma <= 0.1, 0.35 - 0.5 ms at
     /// sigma = 0.3, 0.9 - 1.3 ms for sigma in [1, 2] (3 000 - 20 000 facet evaluations; more for large sigma and
     /// for eta < 1, where more curves cross). Throws std::invalid_argument for nodes < 2.
@@ -872,6 +900,11 @@ public:
         nodes = nodes < 32 ? nodes : 32;
         using W = detail::wide_t<Real>;
         if (index_matched()) return {Real(0), Real(1)};
+        if (smooth()) {  // the Fresnel values, bit for bit SmoothDielectric's
+            const Real F = fresnel_dielectric(std::fmin(std::fabs(mu_i), Real(1)),
+                                              mu_i < 0 ? eta_above_ / eta_below_ : eta_below_ / eta_above_);
+            return {F, 1 - F};
+        }
         const bool below = mu_i < 0;
         const W eta_i = below ? eta_below_ : eta_above_, eta_t = below ? eta_above_ : eta_below_;
         const W m = std::fmin(std::fabs(static_cast<W>(mu_i)), W(1));
@@ -885,14 +918,42 @@ public:
     Real transmittance(Real mu_i) const { return albedo(mu_i).transmittance; }
 
 private:
-    // G2 for cosines mu_i, mu_o (both > 0, already on their own sides).
-    Real g2(Real mu_i, Real mu_o, bool transmission) const noexcept {
-        using W = detail::wide_t<Real>;
-        const W li = distribution_.Lambda(mu_i), lo = distribution_.Lambda(mu_o);
-        return static_cast<Real>(detail::smith_g2<W>(li, lo, shadowing_, transmission));
+    // The smooth interface's delta sample for wi (wi.z != 0) and eta = eta_t / eta_i: the mirror direction with
+    // probability F (1 under total internal reflection), else the Snell direction (tangential component / eta,
+    // normal cosine sqrt(mu^2 + eta^2 - 1) / eta on the other side, as SmoothDielectric::scatter). pdf is the
+    // selection probability and value = pdf / |wo.z|, so the weight value |wo.z| / pdf is 1 (BsdfSample).
+    STRATUM_HOST_DEVICE static BsdfSample<Real> sample_smooth(Vec3<Real> wi, Real eta, Real u_lobe) noexcept {
+        BsdfSample<Real> out;
+        out.delta = true;
+        const Real mu = std::fmin(std::fabs(wi.z), Real(1));
+        const Real F = fresnel_dielectric(mu, eta);
+        if (u_lobe < F || !(F < 1)) {
+            out.wo = {-wi.x, -wi.y, wi.z};
+            out.reflected = true;
+            out.pdf = F;
+            out.value = F / std::fabs(wi.z);
+            return out;
+        }
+        // F < 1: no total internal reflection, so m2 > 0 (fresnel_dielectric returns 1 for m2 <= 0, eta != 1).
+        const Real m2 = mu * mu + (eta - 1) * (eta + 1);
+        const Real mt = std::fmin(std::sqrt(m2) / eta, Real(1));
+        out.wo = normalize(Vec3<Real>{-wi.x / eta, -wi.y / eta, wi.z > 0 ? -mt : mt});
+        out.pdf = 1 - F;
+        out.value = out.pdf / std::fabs(out.wo.z);
+        return out;
     }
 
-    Beckmann<Real> distribution_;
+    // G2 / (mu_i mu_o) for cosines mu_i, mu_o (both > 0, already on their own sides), in the wide type: G2
+    // vanishes like the cosines at grazing directions, and the quotient stays finite where mu_i mu_o (or its
+    // reciprocal) leaves float's range (e.g. 1e-13 * 1e-30); divided one cosine at a time for the same reason.
+    STRATUM_HOST_DEVICE detail::wide_t<Real> g2_over_cosines(Real mu_i, Real mu_o, bool transmission) const noexcept {
+        using W = detail::wide_t<Real>;
+        const W li = distribution_.Lambda(mu_i), lo = distribution_.Lambda(mu_o);
+        return detail::smith_g2<W>(li, lo, shadowing_, transmission) / static_cast<W>(mu_i) / static_cast<W>(mu_o);
+    }
+
+    Real sigma_;
+    Beckmann<Real> distribution_;  // a placeholder of RMS slope smooth_sigma when smooth()
     Real eta_above_;
     Real eta_below_;
     Shadowing shadowing_;
@@ -920,27 +981,27 @@ public:
         : eta_above_(detail::require_positive("eta_above", eta_above)),
           eta_below_(detail::require_positive("eta_below", eta_below)) {}
 
-    Real eta_above() const noexcept { return eta_above_; }
-    Real eta_below() const noexcept { return eta_below_; }
+    STRATUM_HOST_DEVICE Real eta_above() const noexcept { return eta_above_; }
+    STRATUM_HOST_DEVICE Real eta_below() const noexcept { return eta_below_; }
 
     /// Relative index eta_t / eta_i for light arriving with cosine mu_i.
-    Real relative_eta(Real mu_i) const noexcept { return mu_i >= 0 ? eta_below_ / eta_above_ : eta_above_ / eta_below_; }
+    STRATUM_HOST_DEVICE Real relative_eta(Real mu_i) const noexcept { return mu_i >= 0 ? eta_below_ / eta_above_ : eta_above_ / eta_below_; }
 
     /// Fresnel reflectance F(|mu_i|, eta_t / eta_i); 1 under total internal reflection.
-    Real reflectance(Real mu_i) const noexcept { return fresnel_dielectric(std::fabs(mu_i), relative_eta(mu_i)); }
+    STRATUM_HOST_DEVICE Real reflectance(Real mu_i) const noexcept { return fresnel_dielectric(std::fabs(mu_i), relative_eta(mu_i)); }
 
     /// Transmitted power fraction 1 - F.
-    Real transmittance(Real mu_i) const noexcept { return 1 - reflectance(mu_i); }
+    STRATUM_HOST_DEVICE Real transmittance(Real mu_i) const noexcept { return 1 - reflectance(mu_i); }
 
     /// Transmitted radiance per incident radiance, (eta_t / eta_i)^2 (1 - F) (radiance / n^2 is invariant).
-    Real radiance_transmittance(Real mu_i) const noexcept {
+    STRATUM_HOST_DEVICE Real radiance_transmittance(Real mu_i) const noexcept {
         const Real e = relative_eta(mu_i);
         return e * e * transmittance(mu_i);
     }
 
     /// Cosine of the transmitted direction (pointing away from the surface, so of the opposite sign to
     /// mu_i): |mu_t| = sqrt(mu_i^2 + eta^2 - 1) / eta, eta = eta_t / eta_i; 0 under total internal reflection.
-    Real transmitted_cosine(Real mu_i) const noexcept {
+    STRATUM_HOST_DEVICE Real transmitted_cosine(Real mu_i) const noexcept {
         const Real e = relative_eta(mu_i);
         const Real m2 = mu_i * mu_i + (e - 1) * (e + 1);
         if (!(m2 > 0)) return Real(0);
@@ -949,7 +1010,7 @@ public:
     }
 
     /// Both scattered directions and their weights for a unit vector wi.
-    SpecularScattering<Real> scatter(Vec3<Real> wi) const noexcept {
+    STRATUM_HOST_DEVICE SpecularScattering<Real> scatter(Vec3<Real> wi) const noexcept {
         SpecularScattering<Real> out;
         out.reflected = {-wi.x, -wi.y, wi.z};
         const Real e = relative_eta(wi.z);

@@ -337,8 +337,10 @@ FourierOperators<Real> fourier_operators(const Kernel& rho, const Features& feat
 //    Gauss ordinates on both sides of a critical cone, exact reciprocity, exact energy and pointwise
 //    accuracy cannot all hold (the two sides' Gauss sums of the total transmittance differ).
 //    Ordinates beyond the critical angle inside the denser medium are totally reflected (R = 1, T column
-//    = 0); rows there receive nothing in pointwise mode (in flux_conserving mode the ordinate just below
-//    the critical cosine shares the beams landing between it and its upper neighbour). A solver that
+//    = 0, T row = 0) in both modes: beams landing between the critical cosine and the first ordinate above
+//    it go to that ordinate (and the ones above), and pointwise interpolation reads only ordinates above the
+//    critical cosine (extrapolating to it), so no light crosses into or out of a totally reflected
+//    direction (between two lossless faces it would be trapped; tests/test_layer_inputs.cpp). A solver that
 //    needs exact beams should keep the unscattered beam analytic (physics-notes section 6).
 //
 // Accuracy of the rough operators. The phi integral is controlled by AzimuthalQuadrature (measured: <= 4e-12
@@ -425,16 +427,17 @@ struct RoughKernel {
     }
 };
 
-// Weights of the p-point Lagrange interpolation at x from the p consecutive nodes nearest to x
-// (nodes ascending): writes the first node's index to `first` and the weights to w[0..p-1].
+// Weights of the p-point Lagrange interpolation at x from the p consecutive nodes nearest to x among
+// nodes[lowest..] (nodes ascending, p <= size - lowest): writes the first node's index to `first` and the
+// weights to w[0..p-1].
 template <class Real>
-void local_lagrange(const std::vector<Real>& nodes, int p, Real x, int& first, Real* w) noexcept {
+void local_lagrange(const std::vector<Real>& nodes, int p, Real x, int& first, Real* w, int lowest = 0) noexcept {
     const int m = static_cast<int>(nodes.size());
-    if (p > m) p = m;
-    int j = 0;  // first node > x
+    if (p > m - lowest) p = m - lowest;
+    int j = lowest;  // first node > x
     while (j < m && nodes[static_cast<std::size_t>(j)] <= x) ++j;
     first = j - p / 2;
-    if (first < 0) first = 0;
+    if (first < lowest) first = lowest;
     if (first > m - p) first = m - p;
     for (int a = 0; a < p; ++a) {
         const Real xa = nodes[static_cast<std::size_t>(first + a)];
@@ -479,6 +482,13 @@ public:
         const int m = static_cast<int>(ordinates.size());
         if (index_matched_) {
             set_index_matched(m);
+            return;
+        }
+        if (interface.smooth()) {
+            // sigma below RoughDielectric::smooth_sigma: the BSDF is a pair of deltas (brdf and btdf return 0),
+            // so the exact specular representation of the SmoothDielectric it equals (default transmission).
+            *this = InterfaceOperators(SmoothDielectric<Real>(interface.eta_above(), interface.eta_below()),
+                                       ordinates, modes);
             return;
         }
         // Reciprocity halves the work (and makes the matrices reciprocal to the last bit):
@@ -566,6 +576,19 @@ public:
             return ordinates.weights[static_cast<std::size_t>(i)] * ordinates.nodes[static_cast<std::size_t>(i)];
         };
         std::vector<Real> w(static_cast<std::size_t>(std::max(points, 4)));
+        // Ordinates below the critical cosine on the denser side are totally reflected: no transmitted beam
+        // lands there and none of their light crosses. Both constructions use only the ordinates that cross
+        // (the last one at least): a beam split onto, or a field interpolated from, a totally reflected
+        // ordinate couples light into directions that two lossless faces trap (a stack's thin or
+        // non-scattering slab between smooth faces), where it accumulated without bound and leaked back out
+        // (solve_stack created up to 1000 times the incident energy; tests/test_layer_inputs.cpp).
+        // crossing(sign): the first ordinate whose light, arriving with cosine sign * mu, is transmitted.
+        const auto crossing = [&](Real sign) {
+            int i = 0;
+            while (i < m - 1 && !(interface.transmitted_cosine(sign * ordinates.nodes[static_cast<std::size_t>(i)]) != 0))
+                ++i;
+            return i;
+        };
         for (int j = 0; j < m; ++j) {
             const Real mu = ordinates.nodes[static_cast<std::size_t>(j)];
             const Real f12 = interface.reflectance(mu), f21 = interface.reflectance(-mu);
@@ -578,15 +601,19 @@ public:
                 const Real in_sign = side == 0 ? Real(1) : Real(-1);  // sign of wi.z for light from that side
                 int first = 0;
                 const bool conserve = conserves(side);
-                const int p = std::min(points > 0 ? points : (conserve ? 2 : 4), m);
+                // The ordinates that may be used: those of the transmitted medium (conserve) or of the incident
+                // one (pointwise) that cross the interface (see `crossing` above).
+                const int lowest = crossing(conserve ? -in_sign : in_sign);
+                const int p = std::min(points > 0 ? points : (conserve ? 2 : 4), m - lowest);
                 if (conserve) {
                     // Column j: the beam from ordinate j goes to mu_t = Snell(mu_j) with power 1 - F(mu_j);
                     // split it over the ordinates around mu_t with weights s (sum 1) so that the flux
                     // sum_n w_n mu_n T_{n,j} = w_j mu_j (1 - F(mu_j)) exactly.
                     const Real mu_t = std::fabs(interface.transmitted_cosine(in_sign * mu));
                     if (!(mu_t > 0)) continue;  // total internal reflection: nothing is transmitted
-                    const Real x = std::fmin(std::fmax(mu_t, ordinates.nodes.front()), ordinates.nodes.back());
-                    detail::local_lagrange(ordinates.nodes, p, x, first, w.data());
+                    const Real x = std::fmin(std::fmax(mu_t, ordinates.nodes[static_cast<std::size_t>(lowest)]),
+                                             ordinates.nodes.back());
+                    detail::local_lagrange(ordinates.nodes, p, x, first, w.data(), lowest);
                     const Real power = interface.transmittance(in_sign * mu) * weight(j);
                     for (int a = 0; a < p; ++a)
                         for (int k = 0; k < modes; ++k) t(k, first + a, j) = power * w[static_cast<std::size_t>(a)] / weight(first + a);
@@ -596,7 +623,7 @@ public:
                     const Real mu_i = std::fabs(interface.transmitted_cosine(-in_sign * mu));
                     if (!(mu_i > 0)) continue;  // no incident direction reaches mu_j
                     const Real factor = interface.radiance_transmittance(in_sign * mu_i);
-                    detail::local_lagrange(ordinates.nodes, p, mu_i, first, w.data());
+                    detail::local_lagrange(ordinates.nodes, p, mu_i, first, w.data(), lowest);
                     for (int a = 0; a < p; ++a)
                         for (int k = 0; k < modes; ++k) t(k, j, first + a) = factor * w[static_cast<std::size_t>(a)];
                 }

@@ -20,21 +20,14 @@
 #include <limits>
 #include <type_traits>
 
+#include "detail/config.hpp"
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "vec3.hpp"
 
 namespace stratum {
 
 namespace detail {
-
-/// The type in which internal iterations run: at least double (float loses the tails of erfc).
-template <class Real>
-using wide_t = std::conditional_t<(sizeof(Real) < sizeof(double)), double, Real>;
-
-template <class W>
-constexpr W pi_v = W(3.141592653589793238462643383279502884L);
-template <class W>
-constexpr W sqrt_pi_v = W(1.772453850905516027298167483341145183L);
 
 /// Smith's Lambda of a Gaussian surface as a function of a = cot(theta) / alpha (a >= 0):
 ///   Lambda(a) = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2          (van Ginneken et al. 1998)
@@ -46,7 +39,7 @@ constexpr W sqrt_pi_v = W(1.772453850905516027298167483341145183L);
 /// a = 5, falling fast beyond (measured with mpmath; this bounds long double too, where Lambda < 1.5e-14
 /// there). Exact otherwise: no rational fit. a = 0 gives +inf, a = inf gives 0.
 template <class W>
-W smith_lambda_gaussian(W a) noexcept {
+STRATUM_HOST_DEVICE W smith_lambda_gaussian(W a) noexcept {
     if (!(a > 0)) return std::numeric_limits<W>::infinity();
     if (a < W(5)) return (std::exp(-a * a) / (a * sqrt_pi_v<W>) - std::erfc(a)) / 2;
     if (!(a < std::numeric_limits<W>::max())) return W(0);
@@ -58,7 +51,7 @@ W smith_lambda_gaussian(W a) noexcept {
 /// Inverse of erfc on (0, 2): a Winitzki-type starting value refined by Halley steps on erfc itself,
 /// so the result is as accurate as std::erfc. q is clamped away from 0 and 2 (results stay finite).
 template <class W>
-W erfc_inverse(W q) noexcept {
+STRATUM_HOST_DEVICE W erfc_inverse(W q) noexcept {
     const W tiny = std::numeric_limits<W>::min() / std::numeric_limits<W>::epsilon();
     W sign = 1;
     if (q > 1) {
@@ -90,7 +83,7 @@ W erfc_inverse(W q) noexcept {
 /// g is scaled by 1/a when a >= 1 (a = inf is the Gaussian). The search interval is [-27, min(a, 27)]:
 /// beyond 27 the density is below 1e-316.
 template <class W>
-W sample_visible_slope(W a, W u) noexcept {
+STRATUM_HOST_DEVICE W sample_visible_slope(W a, W u) noexcept {
     const W A = a >= 1 ? W(1) : a;
     const W B = a >= 1 ? 1 / a : W(1);
     auto g = [&](W x) { return A * (sqrt_pi_v<W> / 2) * std::erfc(-x) + B * std::exp(-x * x) / 2; };
@@ -128,31 +121,42 @@ public:
         alpha_ = std::sqrt(Real(2)) * sigma_;
     }
 
-    Real sigma() const noexcept { return sigma_; }
-    Real alpha() const noexcept { return alpha_; }
+    STRATUM_HOST_DEVICE Real sigma() const noexcept { return sigma_; }
+    STRATUM_HOST_DEVICE Real alpha() const noexcept { return alpha_; }
 
     /// Facet-normal density over solid angle, normalized over projected area (int D cos(theta_h) dw_h = 1):
     ///   D(h) = exp(-tan^2(theta_h) / (2 sigma^2)) / (2 pi sigma^2 cos^4(theta_h)),   h.z > 0; 0 otherwise.
-    /// Units 1/sr. h must be a unit vector.
-    Real D(Vec3<Real> h) const noexcept {
+    /// Units 1/sr. h must be a unit vector. Never NaN for any sigma the constructor accepts: where the Gaussian
+    /// factor underflows to 0 the result is 0 (also when the denominator underflows too, e.g. h.z ~ 1e-13 with
+    /// sigma ~ 1e-137, or h.z^4 below float's range at any sigma: 0/0 otherwise). The peak 1 / (2 pi sigma^2)
+    /// overflows to +inf for sigma below ~3e-155 (double) or ~2e-20 (float): a legitimate, if useless, value of a
+    /// density that narrow (RoughDielectric never evaluates D below RoughDielectric::smooth_sigma).
+    STRATUM_HOST_DEVICE Real D(Vec3<Real> h) const noexcept {
         if (!(h.z > 0)) return Real(0);
         const Real c2 = h.z * h.z;
         const Real tan2 = (h.x * h.x + h.y * h.y) / c2;
         const Real s2 = sigma_ * sigma_;
-        return std::exp(-tan2 / (2 * s2)) / (2 * detail::pi_v<Real> * s2 * c2 * c2);
+        // tan2 = 0: the peak, also where sigma^2 underflows to 0 (0 / 0 otherwise).
+        const Real g = tan2 > 0 ? std::exp(-tan2 / (2 * s2)) : Real(1);
+        if (!(g > 0)) return Real(0);
+        return g / (2 * detail::pi_v<Real> * s2 * c2 * c2);
     }
 
     /// Density of the slopes (x~, y~) = (-h.x / h.z, -h.y / h.z) per unit slope area:
     ///   P22(x~, y~) = exp(-(x~^2 + y~^2) / (2 sigma^2)) / (2 pi sigma^2)   (= D(h) cos^4(theta_h)).
-    Real slope_pdf(Real slope_x, Real slope_y) const noexcept {
+    /// Never NaN; +inf at slope 0 where 2 pi sigma^2 underflows (see D).
+    STRATUM_HOST_DEVICE Real slope_pdf(Real slope_x, Real slope_y) const noexcept {
         const Real s2 = sigma_ * sigma_;
-        return std::exp(-(slope_x * slope_x + slope_y * slope_y) / (2 * s2)) / (2 * detail::pi_v<Real> * s2);
+        const Real r2 = slope_x * slope_x + slope_y * slope_y;
+        const Real g = r2 > 0 ? std::exp(-r2 / (2 * s2)) : Real(1);
+        if (!(g > 0)) return Real(0);
+        return g / (2 * detail::pi_v<Real> * s2);
     }
 
     /// Smith's Lambda for a direction with cosine mu to the macro normal (only |mu| matters):
     ///   Lambda = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2,  a = |mu| / (sqrt(2) sigma sqrt(1 - mu^2)).
     /// Exact (erfc-based; no rational fit). Lambda(0) = +inf (grazing), Lambda(+-1) = 0.
-    Real Lambda(Real mu) const noexcept {
+    STRATUM_HOST_DEVICE Real Lambda(Real mu) const noexcept {
         using W = detail::wide_t<Real>;
         return static_cast<Real>(detail::smith_lambda_gaussian<W>(cot_over_alpha(std::fabs(mu))));
     }
@@ -160,7 +164,7 @@ public:
     /// Projected area of the visible microsurface per unit macro area, seen from |mu|:
     ///   A(mu) = int max(0, w.h) D(h) dw_h = |mu| (1 + Lambda(mu)),   A(0) = sigma / sqrt(2 pi) > 0.
     /// Evaluated without the 0 * inf of the product form at grazing incidence.
-    Real projected_area(Real mu) const noexcept {
+    STRATUM_HOST_DEVICE Real projected_area(Real mu) const noexcept {
         using W = detail::wide_t<Real>;
         const W m = std::fmin(std::fabs(static_cast<W>(mu)), W(1));
         const W a = cot_over_alpha(static_cast<Real>(m));
@@ -176,15 +180,16 @@ public:
     }
 
     /// Smith masking of the whole microsurface seen from |mu|: G1(mu) = 1 / (1 + Lambda(mu)), in [0, 1];
-    /// G1(0) = 0.
-    Real G1(Real mu) const noexcept {
+    /// G1(0) = 0 (explicitly: A(0) = sigma / sqrt(2 pi) underflows to 0 for denormal sigma).
+    STRATUM_HOST_DEVICE Real G1(Real mu) const noexcept {
         const Real m = std::fmin(std::fabs(mu), Real(1));
+        if (!(m > 0)) return Real(0);
         return m / projected_area(m);
     }
 
     /// Smith masking of facet h seen from direction w: G1(|w.z|) if the facet faces w on w's side of the
     /// surface ((w.h) (w.z) > 0), else 0 (back-facing facets are never visible).
-    Real G1(Vec3<Real> w, Vec3<Real> h) const noexcept {
+    STRATUM_HOST_DEVICE Real G1(Vec3<Real> w, Vec3<Real> h) const noexcept {
         if (!(dot(w, h) * w.z > 0)) return Real(0);
         return G1(w.z);
     }
@@ -195,16 +200,28 @@ public:
     /// inversion) and the perpendicular slope from exp(-y^2) / sqrt(pi), then unstretching. u1, u2 in [0, 1);
     /// the result is a finite unit vector for every such u (u = 0 is clamped to the 1e-316 tail). For
     /// wi.z < 0 the normal is on the lower side (h.z < 0), the mirror image of the wi.z > 0 case.
-    Vec3<Real> sample_visible_normal(Vec3<Real> wi, Real u1, Real u2) const noexcept {
+    STRATUM_HOST_DEVICE Vec3<Real> sample_visible_normal(Vec3<Real> wi, Real u1, Real u2) const noexcept {
         using W = detail::wide_t<Real>;
         const W al = alpha_;
-        const W sx = al * static_cast<W>(wi.x), sy = al * static_cast<W>(wi.y);
-        const W st = std::sqrt(sx * sx + sy * sy);
+        // Azimuth and a = cot(theta) / alpha from wi itself (alpha is isotropic), so that neither a tiny alpha
+        // (alpha wi.x underflowing) nor a huge one ((alpha wi.x)^2 overflowing) changes them.
+        const W wx = static_cast<W>(wi.x), wy = static_cast<W>(wi.y);
+        const W st = std::sqrt(wx * wx + wy * wy);
         const W wz = std::fabs(static_cast<W>(wi.z));
-        const W a = st > 0 ? wz / st : std::numeric_limits<W>::infinity();
-        const W cphi = st > 0 ? sx / st : W(1), sphi = st > 0 ? sy / st : W(0);
+        const W a = st > 0 ? wz / (al * st) : std::numeric_limits<W>::infinity();
+        const W cphi = st > 0 ? wx / st : W(1), sphi = st > 0 ? wy / st : W(0);
         const W x = detail::sample_visible_slope<W>(a, static_cast<W>(u1));
         const W y = -detail::erfc_inverse<W>(2 * static_cast<W>(u2));
+        if (al > 1) {
+            // h ~ (-px, -py, 1) / alpha, the slopes divided by alpha (px^2 would overflow for sigma > ~1e153),
+            // then by the largest component (1 / alpha^2 underflows for sigma > ~1e154).
+            const W px = cphi * x - sphi * y, py = sphi * x + cphi * y, pz = 1 / al;
+            const W m = std::fmax(std::fmax(std::fabs(px), std::fabs(py)), pz);
+            const W qx = px / m, qy = py / m, qz = pz / m;
+            const W inv = 1 / std::sqrt(qx * qx + qy * qy + qz * qz);
+            const W hz = wi.z < 0 ? -qz * inv : qz * inv;
+            return {static_cast<Real>(-qx * inv), static_cast<Real>(-qy * inv), static_cast<Real>(hz)};
+        }
         const W px = al * (cphi * x - sphi * y), py = al * (sphi * x + cphi * y);
         const W inv = 1 / std::sqrt(px * px + py * py + 1);
         const W hz = wi.z < 0 ? -inv : inv;
@@ -212,20 +229,23 @@ public:
     }
 
     /// Density (per steradian of h) of sample_visible_normal: max(0, wi.h) D(h) / (|wi.z| (1 + Lambda)),
-    /// with both vectors mirrored to the upper side when wi.z < 0; 0 for h on the other side of wi.
-    Real visible_normal_pdf(Vec3<Real> wi, Vec3<Real> h) const noexcept {
+    /// with both vectors mirrored to the upper side when wi.z < 0; 0 for h on the other side of wi. Never NaN
+    /// (0 where D is 0; +inf where D overflows, see D, or where A(wi.z) underflows, grazing wi with denormal sigma).
+    STRATUM_HOST_DEVICE Real visible_normal_pdf(Vec3<Real> wi, Vec3<Real> h) const noexcept {
         if (wi.z < 0) {
             wi.z = -wi.z;
             h.z = -h.z;
         }
         const Real c = dot(wi, h);
         if (!(c > 0) || !(h.z > 0)) return Real(0);
-        return c * D(h) / projected_area(wi.z);
+        const Real d = D(h);
+        if (!(d > 0)) return Real(0);
+        return c * d / projected_area(wi.z);
     }
 
 private:
     // a = mu / (alpha sqrt(1 - mu^2)), mu in [0, 1]; +inf at mu = 1.
-    detail::wide_t<Real> cot_over_alpha(Real mu) const noexcept {
+    STRATUM_HOST_DEVICE detail::wide_t<Real> cot_over_alpha(Real mu) const noexcept {
         using W = detail::wide_t<Real>;
         const W m = std::fmin(static_cast<W>(mu), W(1));
         const W s = std::sqrt((1 - m) * (1 + m));

@@ -39,6 +39,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 
 namespace stratum {
@@ -62,8 +63,6 @@ struct GaussLegendreNode {
 /// Largest n handled by Newton's method; above it the asymptotic expansion is used (measured crossover).
 inline constexpr int gauss_legendre_newton_max_n = 200;
 
-inline constexpr long double pi_ld = 3.141592653589793238462643383279502884L;
-
 /// The k-th positive zero of J_0, j = beta + delta with beta = pi (k - 1/4) (delta is needed apart to
 /// form pi/2 - j v without cancellation). Tabulated for k <= 20 (mpmath.besseljzero(0, k), 30 digits);
 /// else McMahon's
@@ -85,7 +84,7 @@ inline BesselZero bessel_j0_zero(int k) noexcept {
         46.3411883716618140186857888791L, 49.4826098973978171736027615332L,
         52.6240518411149960292512853804L, 55.7655107550199793116834927735L,
         58.9069839260809421328344066346L, 62.0484691902271698828525002647L};
-    const long double beta = pi_ld * (static_cast<long double>(k) - 0.25L);
+    const long double beta = pi_v<long double> * (static_cast<long double>(k) - 0.25L);
     if (k <= 20) return {zeros[k - 1], static_cast<double>(zeros[k - 1] - beta)};
     const double r = 1 / static_cast<double>(beta), r2 = r * r;
     const double delta =
@@ -122,7 +121,7 @@ inline long double bessel_j1_squared_at_j0_zero(int k, long double j) noexcept {
                             y * (-214.617061614990234375 +
                                  y * (5951.152271032333374023438 +
                                       y * (-233476.4560617506504058838 + y * 12312234.98763138195499778)))))));
-    return 2 / (pi_ld * j * (1 + static_cast<long double>(tail)));
+    return 2 / (pi_v<long double> * j * (1 + static_cast<long double>(tail)));
 }
 
 /// sin(a) and cos(a) in long double for |a| <= pi/4, by their Taylor series to degree 21 and 20
@@ -201,7 +200,7 @@ inline GaussLegendreNode gauss_legendre_node_asymptotic(int n, int k, long doubl
     const BesselZero zero = bessel_j0_zero(k);
     const W a = zero.j * v;
     GaussLegendreNode node;
-    if (a <= pi_ld / 4) {  // x near 1: carry sin(theta/2); corrections in long double (they cancel)
+    if (a <= pi_v<long double> / 4) {  // x near 1: carry sin(theta/2); corrections in long double (they cancel)
         W s2, c2;
         sincos_pi4(a / 2, s2, c2);
         const W sin_a = 2 * s2 * c2, cos_a = (c2 - s2) * (c2 + s2);
@@ -219,7 +218,7 @@ inline GaussLegendreNode gauss_legendre_node_asymptotic(int n, int k, long doubl
     } else {  // away from x = 1: carry psi; corrections in double (no cancellation, scaled by v^2)
         const double vd = static_cast<double>(v);
         const W psi =
-            pi_ld / 2 * (static_cast<W>(n) + 1 - 2 * static_cast<W>(k)) * v - static_cast<W>(zero.delta * vd);
+            pi_v<long double> / 2 * (static_cast<W>(n) + 1 - 2 * static_cast<W>(k)) * v - static_cast<W>(zero.delta * vd);
         W sin_a, cos_a;
         sincos_pi4(psi, cos_a, sin_a);
         const double ad = static_cast<double>(a), u = static_cast<double>(cos_a / sin_a), ia = 1 / ad;
@@ -297,7 +296,7 @@ inline void gauss_legendre_nodes_newton(int n, int k, int k2, GaussLegendreNode 
         out[m].weight = weight[m];
         out[m].lo = sh * sh;  // (1 - cos theta)/2 = sin^2(theta/2)
         out[m].hi = 1 - out[m].lo;
-        out[m].x = theta[m] <= pi_ld / 4 ? 1 - 2 * out[m].lo : std::cos(theta[m]);  // relative accuracy near 0
+        out[m].x = theta[m] <= pi_v<long double> / 4 ? 1 - 2 * out[m].lo : std::cos(theta[m]);  // relative accuracy near 0
     }
 }
 

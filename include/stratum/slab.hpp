@@ -335,10 +335,17 @@ void slab_boundary_solve(const SlabEigensystem<Real>& es, Real tau, Matrix<Real>
         } else {  // sum and scaled difference of the pair, finite as lambda -> 0
             const Real phi = lam == Real(0) ? tau : -std::expm1(-x) / lam;
             const Real l2phi = lam * lam * phi;
+            // The difference column may be scaled freely (its unknown coefficient absorbs the factor): for phi > 1
+            // it is divided by phi. Otherwise the conservation mode (Omega = 1, lambda = 0, phi = tau) of a very
+            // thick slab has entries ~ tau: lu_factor's singularity threshold, relative to the largest entry, then
+            // treats every O(1) pivot as zero (tau = 1e300 gave R + T = 8e-8 instead of 1), and tau ~ 1e308
+            // overflows. Scaled, tau -> inf tends to the semi-infinite solution (tests/test_layer_inputs.cpp).
+            const Real big = phi > Real(1) ? phi : Real(1);
+            const Real n_phi = phi > Real(1) ? Real(1) : phi, y_scale = (Real(1) + e) / big;
             for (std::size_t i = 0; i < m_size; ++i) {
                 const Real n = es.n(i, j), y = es.y(i, j);
                 const Real sum_in = n * (Real(1) + e) + l2phi * y, sum_out = n * (Real(1) + e) - l2phi * y;
-                const Real dif_in = n * phi + y * (Real(1) + e), dif_out = n * phi - y * (Real(1) + e);
+                const Real dif_in = n * n_phi + y * y_scale, dif_out = n * n_phi - y * y_scale;
                 sys(i, jd) = sum_in;
                 sys(m_size + i, jd) = sum_in;
                 sys(i, jg) = dif_in;

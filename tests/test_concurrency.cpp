@@ -1,0 +1,148 @@
+// Concurrent evaluation: the interface and layer evaluation functions are const and documented thread-safe
+// (LayeredSurface: one Workspace per thread). Several threads evaluate the same objects at once and must
+// reproduce the single-threaded results bit for bit. Run under ThreadSanitizer to check for data races
+// (e.g. glibc's std::lgamma writes the global signgam; none of the library's code may call it):
+//   cmake -S . -B build/tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++
+//         -DCMAKE_CXX_FLAGS=-fsanitize=thread -DSTRATUM_BUILD_BENCHMARKS=OFF -DSTRATUM_BUILD_EXAMPLES=OFF
+//   cmake --build build/tsan --target test_concurrency && build/tsan/tests/test_concurrency
+#include <doctest/doctest.h>
+
+#include <stratum/interface.hpp>
+#include <stratum/layer.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <thread>
+#include <vector>
+
+using stratum::LayerOptions;
+using stratum::LayerOutput;
+using stratum::LayerRequest;
+using stratum::RoughDielectric;
+using stratum::Shadowing;
+using stratum::Slab;
+using stratum::Vec3;
+
+namespace {
+
+constexpr int thread_count = 4;
+constexpr double pi = 3.141592653589793238462643383279502884;
+
+double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1p-53; }
+
+Vec3<double> random_direction(std::mt19937_64& rng) {
+    const double z = 2 * uniform(rng) - 1, phi = 2 * pi * uniform(rng);
+    const double s = std::sqrt(std::fmax(0.0, 1 - z * z));
+    return {s * std::cos(phi), s * std::sin(phi), z};
+}
+
+// Bitwise equality of two result vectors (NaN-safe, distinguishes -0 from +0).
+bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+// Runs `work` (returning a result vector) on thread_count threads released together; returns their results.
+template <class Work>
+std::vector<std::vector<double>> run_concurrently(Work work) {
+    std::vector<std::vector<double>> results(thread_count);
+    std::atomic<int> ready{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < thread_count; ++t)
+        threads.emplace_back([&, t] {
+            ready.fetch_add(1);
+            while (ready.load() < thread_count) std::this_thread::yield();  // start together
+            results[static_cast<std::size_t>(t)] = work();
+        });
+    for (auto& th : threads) th.join();
+    return results;
+}
+
+// Every evaluation function of one interface on a fixed set of inputs.
+std::vector<double> evaluate_interface(const RoughDielectric<double>& rd) {
+    std::mt19937_64 rng(11);
+    std::vector<double> out;
+    for (int i = 0; i < 400; ++i) {
+        const Vec3<double> wi = random_direction(rng), wo = random_direction(rng);
+        const double u0 = uniform(rng), u1 = uniform(rng), u2 = uniform(rng);
+        out.push_back(rd.brdf(wi, wo));
+        out.push_back(rd.btdf(wi, wo));
+        out.push_back(rd.btdf(wi, {wo.x, wo.y, -wo.z}));
+        out.push_back(rd.eval(wi, wo));
+        out.push_back(rd.pdf(wi, wo));
+        const auto s = rd.sample(wi, u0, u1, u2);
+        out.insert(out.end(), {s.wo.x, s.wo.y, s.wo.z, s.value, s.pdf, double(s.reflected), double(s.delta)});
+    }
+    for (double mu : {0.9, 0.4, 0.05, -0.3, -0.8}) {
+        const auto a = rd.albedo(mu);
+        out.push_back(a.reflectance);
+        out.push_back(a.transmittance);
+    }
+    return out;
+}
+
+// Stam's skin layer (README) on 4 ordinates: every evaluation function, from a fresh object or not.
+stratum::LayeredSurface<double> skin_layer() {
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    LayerOptions options;
+    options.ordinates = 4;
+    LayerRequest<double> request;
+    request.outputs = LayerOutput::all;
+    return stratum::solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), top, bottom, options, request);
+}
+
+std::vector<double> evaluate_layer(const stratum::LayeredSurface<double>& layer) {
+    std::mt19937_64 rng(12);
+    stratum::LayeredSurface<double>::Workspace ws;
+    std::vector<double> out;
+    for (int i = 0; i < 60; ++i) {
+        Vec3<double> wi = random_direction(rng), wo = random_direction(rng);
+        wi.z = std::fabs(wi.z);
+        wo.z = std::fabs(wo.z);
+        out.push_back(layer.brdf(wi, wo, ws));
+        out.push_back(layer.subsurface_brdf(wi, wo, ws));
+        out.push_back(layer.btdf(wi, {wo.x, wo.y, -wo.z}, ws));
+        out.push_back(layer.ambient(wo, ws));
+    }
+    for (double mu : {1.0, 0.7, 0.3, 0.02, 1e-4}) {  // 1e-4: below the lazy table's first interval
+        const auto a = layer.albedo(mu);
+        out.push_back(a.surface);
+        out.push_back(a.subsurface);
+        out.push_back(layer.transmittance(mu));
+        out.push_back(layer.direct_transmittance(mu));
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("threads evaluating one RoughDielectric reproduce the single-threaded results bit for bit") {
+    for (auto form : {Shadowing::height_correlated, Shadowing::separable}) {
+        const RoughDielectric<double> rd(0.3, 1.0, 1.4, form);
+        const std::vector<double> reference = evaluate_interface(rd);
+        const auto results = run_concurrently([&] { return evaluate_interface(rd); });
+        for (const auto& r : results) CHECK(same_bits(r, reference));
+    }
+}
+
+TEST_CASE("threads evaluating one smooth-limit RoughDielectric (sigma = 0) reproduce the single-threaded results") {
+    const RoughDielectric<double> smooth(0.0, 1.0, 1.4);
+    const std::vector<double> reference = evaluate_interface(smooth);
+    const auto results = run_concurrently([&] { return evaluate_interface(smooth); });
+    for (const auto& r : results) CHECK(same_bits(r, reference));
+}
+
+TEST_CASE("threads evaluating one LayeredSurface (lazy tables included) reproduce the single-threaded results") {
+    const std::vector<double> reference = evaluate_layer(skin_layer());
+    // A fresh layer, so that the threads race to build its lazily tabulated transmittances.
+    const auto fresh = skin_layer();
+    const auto results = run_concurrently([&] { return evaluate_layer(fresh); });
+    for (const auto& r : results) CHECK(same_bits(r, reference));
+}
+
+TEST_CASE("threads solving layers at once get the single-threaded solution") {
+    const std::vector<double> reference = evaluate_layer(skin_layer());
+    const auto results = run_concurrently([] { return evaluate_layer(skin_layer()); });
+    for (const auto& r : results) CHECK(same_bits(r, reference));
+}

@@ -1,0 +1,563 @@
+// The layer API fed as a new user would feed it: solve_layer and solve_stack with extreme and degenerate
+// parameters, options and requests, then every public evaluation function of the result (brdf,
+// subsurface_brdf, btdf, albedo, transmittance, direct_transmittance, direct_reflectance, ambient, with and
+// without a Workspace) at extreme and degenerate arguments. Accepted input must give finite values in their
+// physical ranges with energy never created (beyond rounding; the two documented limitations, README "Known
+// limitations", get their measured bounds); rejected input must throw std::invalid_argument naming the
+// parameter; degenerate arguments of an evaluation function (horizon, wrong hemisphere, NaN or infinite
+// components, cosines outside (0, 1]) give exactly 0 (the documented, pbrt-style choice).
+// Few ordinates (1 - 12, mostly 3 - 4) keep it fast: ~7 s in Release, ~11 s under ASan + UBSan.
+#include <doctest/doctest.h>
+
+#include <stratum/layer.hpp>
+
+#include <climits>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+using stratum::Boundary;
+using stratum::LayeredSurface;
+using stratum::LayerOptions;
+using stratum::LayerOutput;
+using stratum::LayerRequest;
+using stratum::RoughDielectric;
+using stratum::Slab;
+using stratum::SmoothDielectric;
+using stratum::Vec3;
+using stratum::solve_layer;
+using stratum::solve_stack;
+
+namespace {
+
+constexpr double inf = std::numeric_limits<double>::infinity();
+constexpr double not_a_number = std::numeric_limits<double>::quiet_NaN();
+constexpr double huge = std::numeric_limits<double>::max();
+constexpr double denormal = std::numeric_limits<double>::denorm_min();
+
+// Energy slack for albedo + transmittance <= 1. Every flux the solver reports is rescaled to exact totals
+// (Gauss sums to T_12(mu_0) and the exit weights to (n_out/n_in)^2 T(mu), the rough operators to their
+// hemispherical totals, the specular beam's scattered part to exactly the energy the true beam loses), so
+// what remains is rounding: ~100 operations on O(1) numbers at M <= 12, the 1e-12 that test_layer.cpp's
+// energy tests and randomized sweeps use for rough and specular faces alike. No discretization error enters a
+// bound here, so none is allowed for.
+constexpr double slack = 1e-12;
+
+LayerOptions with_ordinates(int m, int modes = 0, bool delta_m = true) {
+    LayerOptions o;
+    o.ordinates = m;
+    o.modes = modes;
+    o.delta_m = delta_m;
+    return o;
+}
+
+Vec3<double> direction(double mu, double phi) { return stratum::spherical_direction(mu, phi); }
+Vec3<double> flip(Vec3<double> v) { return {v.x, v.y, -v.z}; }
+Vec3<double> scaled(double s, Vec3<double> v) { return {s * v.x, s * v.y, s * v.z}; }
+
+std::string fmt(double x) {
+    std::ostringstream out;
+    out.precision(17);
+    out << x;
+    return out.str();
+}
+std::string fmt(Vec3<double> v) { return "(" + fmt(v.x) + ", " + fmt(v.y) + ", " + fmt(v.z) + ")"; }
+
+// In [0, 1] up to `tolerance` above 1 (a total of 1 computed as a sum can round to 1 + 2e-16); false for NaN.
+bool in01(double x, double tolerance) { return x >= 0 && x <= 1 + tolerance; }
+bool finite_nonnegative(double x) { return std::isfinite(x) && x >= 0; }
+
+// Collects the failures of one surface so that a defect prints once, with its input, instead of as hundreds
+// of CHECKs.
+struct Findings {
+    std::string label;
+    std::vector<std::string> failures;
+    void expect(bool ok, const std::string& what) {
+        if (!ok) failures.push_back(what);
+    }
+    std::string summary() const {
+        std::string s = label + ": " + std::to_string(failures.size()) + " failure(s)";
+        for (std::size_t i = 0; i < failures.size() && i < 8; ++i) s += "\n    " + failures[i];
+        return s;
+    }
+};
+
+// Unit directions above the surface: the normal, two oblique ones, grazing (z = 1e-9) and grazing to rounding.
+const std::vector<Vec3<double>>& up_directions() {
+    static const std::vector<Vec3<double>> v = {{0, 0, 1}, direction(0.8, 0.3), direction(0.3, 2.0), direction(1e-9, 1.0),
+                                                {1, 0, 1e-300}};
+    return v;
+}
+
+// Degenerate arguments: on the horizon, the zero vector, NaN and infinite components. Documented result: 0.
+const std::vector<Vec3<double>>& degenerate_directions() {
+    static const std::vector<Vec3<double>> v = {
+        {1, 0, 0},     {0, 1, -0.0},   {0, 0, 0},    {0, 0, -0.0},  {not_a_number, 0, 0.8}, {0, not_a_number, 0.8}, {0.6, 0, not_a_number},
+        {not_a_number, not_a_number, not_a_number}, {inf, 0, 0.8}, {0.6, -inf, 0.8}, {0, 0, inf}, {-inf, 0, inf}, {not_a_number, 0, -0.8}, {0.6, 0, -inf}};
+    return v;
+}
+
+// Finite, non-unit vectors (the functions expect unit vectors; these must still give finite values >= 0).
+const std::vector<Vec3<double>>& non_unit_directions() {
+    static const std::vector<Vec3<double>> v = {
+        {0, 0, 2},
+        scaled(3, direction(0.8, 0.3)),
+        scaled(1e-3, direction(0.8, 0.3)),
+        scaled(1e200, direction(0.8, 0.3)),
+        scaled(1e-200, direction(0.3, 2.0)),
+        {1e-300, 0, 1e-300},
+        {1e300, 1e300, 1e300},
+        {huge, huge, huge},
+        {denormal, 0, denormal},
+        {0, 0, denormal},
+    };
+    return v;
+}
+
+// Every public evaluation function of `s` at regular, extreme and degenerate arguments. Energy: albedo +
+// transmittance <= 1 + energy_slack.
+void check_surface(const LayeredSurface<double>& s, const std::string& label, double energy_slack = slack) {
+    Findings f{label, {}};
+    typename LayeredSurface<double>::Workspace ws;
+
+    // Cosines in (0, 1]: every component in [0, 1], the direct parts inside their totals, energy not created.
+    for (double mu : {denormal, 1e-300, 1e-9, 0.3, 0.7, 1.0}) {
+        const auto a = s.albedo(mu);
+        const double t = s.transmittance(mu), dt = s.direct_transmittance(mu), dr = s.direct_reflectance(mu);
+        const std::string at = " at mu = " + fmt(mu) + ": R = " + fmt(a.surface) + " + " + fmt(a.subsurface) +
+                               ", T = " + fmt(t) + ", direct T = " + fmt(dt) + ", direct R = " + fmt(dr);
+        f.expect(in01(a.surface, energy_slack) && in01(a.subsurface, energy_slack) && in01(t, energy_slack) &&
+                     in01(dt, energy_slack) && in01(dr, energy_slack),
+                 "outside [0, 1]" + at);
+        f.expect(dt <= t && dr <= a.subsurface, "direct part exceeds its total" + at);
+        f.expect(a.total() + t <= 1 + energy_slack, "energy created (R + T - 1 = " + fmt(a.total() + t - 1) + ")" + at);
+    }
+    // Cosines outside (0, 1]: documented 0.
+    for (double mu : {0.0, -0.0, -denormal, -0.5, -1.0, std::nextafter(1.0, 2.0), 1 + 1e-12, 2.0, inf, -inf, not_a_number}) {
+        const auto a = s.albedo(mu);
+        f.expect(a.surface == 0 && a.subsurface == 0 && s.transmittance(mu) == 0 && s.direct_transmittance(mu) == 0 &&
+                     s.direct_reflectance(mu) == 0,
+                 "not 0 outside (0, 1] at mu = " + fmt(mu));
+    }
+
+    // Regular directions: every incidence against the normal, an oblique and a grazing outgoing direction.
+    for (const Vec3<double>& wi : up_directions()) {
+        for (const Vec3<double>& wo : {up_directions()[0], up_directions()[2], up_directions()[3]}) {
+            const double r = s.brdf(wi, wo), rs = s.subsurface_brdf(wi, wo), t = s.btdf(wi, flip(wo));
+            const std::string at = " at wi = " + fmt(wi) + ", wo = " + fmt(wo) + ": brdf " + fmt(r) + ", subsurface " +
+                                   fmt(rs) + ", btdf(wi, -wo) " + fmt(t);
+            f.expect(finite_nonnegative(r) && finite_nonnegative(rs) && finite_nonnegative(t), "not finite >= 0" + at);
+            f.expect(rs <= r, "subsurface_brdf > brdf" + at);
+            if (wi.z == wo.z)  // (one pair is enough: the same code)
+                f.expect(s.brdf(wi, wo, ws) == r && s.subsurface_brdf(wi, wo, ws) == rs && s.btdf(wi, flip(wo), ws) == t,
+                         "Workspace overload differs" + at);
+            // The wrong hemispheres: 0.
+            f.expect(s.brdf(wi, flip(wo)) == 0 && s.brdf(flip(wi), wo) == 0 && s.subsurface_brdf(wi, flip(wo)) == 0 &&
+                         s.btdf(wi, wo) == 0 && s.btdf(flip(wi), flip(wo)) == 0 && s.btdf(flip(wi), wo) == 0,
+                     "not 0 for the wrong hemisphere" + at);
+        }
+        const double a = s.ambient(wi);
+        f.expect(finite_nonnegative(a) && a <= 1 + energy_slack && s.ambient(wi, ws) == a,
+                 "ambient " + fmt(a) + " at wo = " + fmt(wi));
+        f.expect(s.ambient(flip(wi)) == 0, "ambient not 0 below at wo = " + fmt(flip(wi)));
+    }
+
+    // Degenerate directions, in either argument: documented 0.
+    const Vec3<double> partner = direction(0.8, 0.3), partner_down = direction(-0.6, 2.0);
+    for (const Vec3<double>& d : degenerate_directions()) {
+        const double values[] = {s.brdf(d, partner),         s.brdf(partner, d),      s.subsurface_brdf(d, partner),
+                                 s.subsurface_brdf(partner, d), s.btdf(d, partner_down), s.btdf(partner, d),
+                                 s.btdf(partner, flip(d)),   s.ambient(d),           s.brdf(d, d)};
+        std::string list;
+        bool zero = true;
+        for (double v : values) {
+            list += " " + fmt(v);
+            zero = zero && v == 0;
+        }
+        f.expect(zero, "not 0 for the degenerate direction " + fmt(d) + ":" + list);
+    }
+
+    // Non-unit directions: finite and >= 0.
+    for (const Vec3<double>& d : non_unit_directions()) {
+        const double values[] = {s.brdf(d, partner), s.brdf(partner, d), s.btdf(d, partner_down),
+                                 s.btdf(partner, flip(d)), s.ambient(d), s.btdf(d, flip(d))};
+        std::string list;
+        bool ok = true;
+        for (double v : values) {
+            list += " " + fmt(v);
+            ok = ok && finite_nonnegative(v);
+        }
+        f.expect(ok, "not finite >= 0 for the non-unit direction " + fmt(d) + ":" + list);
+    }
+
+    // The per-mode operators, when requested, are finite, and the flux of each mode-0 column (light arriving at
+    // one ordinate, from above or from below) is bounded. Not by 1: under the default automatic transmission a
+    // smooth face's pointwise interpolation rows do not conserve flux per column (interface_operators.hpp; up
+    // to 4.0 measured at M = 12); the bound 8 catches unbounded growth (before the fix of ordinates totally
+    // reflected at both faces, a smooth | smooth layer with tau <= 1e-6 gave column fluxes of 1e5 to 5e291).
+    bool finite_operators = true;
+    for (const auto& c : s.mode_operators())
+        for (const std::vector<double>* m : {&c.reflection_down, &c.transmission_down, &c.reflection_up, &c.transmission_up})
+            for (double x : *m) finite_operators = finite_operators && std::isfinite(x);
+    f.expect(finite_operators, "mode_operators() not finite");
+    if (!s.mode_operators().empty()) {
+        const auto& c = s.mode_operators()[0];
+        const auto& q = s.quadrature();
+        const std::size_t n_size = q.size();
+        double largest = 0;
+        for (std::size_t m = 0; m < n_size; ++m) {
+            double down = 0, up = 0;
+            for (std::size_t n = 0; n < n_size; ++n) {
+                const double w = q.weights[n] * q.nodes[n];
+                down += w * (c.reflection_down[n * n_size + m] + c.transmission_down[n * n_size + m]);
+                up += w * (c.reflection_up[n * n_size + m] + c.transmission_up[n * n_size + m]);
+            }
+            largest = std::fmax(largest, std::fmax(down, up) / (q.weights[m] * q.nodes[m]));
+        }
+        f.expect(largest <= 8, "mode_operators() column flux " + fmt(largest));
+    }
+    f.expect(s.modes() >= 0 && s.ordinates() >= 1, "modes() " + std::to_string(s.modes()) + ", ordinates() " +
+                                                        std::to_string(s.ordinates()));
+
+    CHECK_MESSAGE(f.failures.empty(), f.summary());
+}
+
+// The boundary pairs every parameter sweep runs through (air | n = 1.4 | air unless stated).
+// A layer with a rough face costs ~50 ms at M = 4 (its transmittance table: 64 hemispherical integrals per face,
+// on first evaluation), a specular one ~1 ms: the sweeps visit fewer values with rough faces.
+struct Faces {
+    const char* name;
+    Boundary<double> top, bottom;
+    bool rough() const { return top.rough() || bottom.rough(); }
+};
+std::vector<Faces> face_kinds() {
+    return {
+        {"smooth | smooth", SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0)},
+        {"rough | rough", RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0)},
+        {"rough | index matched", RoughDielectric<double>(0.3, 1.0, 1.4), Boundary<double>::index_matched(1.4)},
+        {"index matched | index matched", Boundary<double>::index_matched(), Boundary<double>::index_matched()},
+    };
+}
+
+template <class F>
+std::string thrown_message(F&& f) {
+    try {
+        f();
+    } catch (const std::invalid_argument& e) {
+        return e.what();
+    } catch (const std::exception& e) {
+        return std::string("<wrong exception type> ") + e.what();
+    }
+    return "<nothing thrown>";
+}
+
+// `f` throws std::invalid_argument whose what() contains `name` (the parameter).
+#define CHECK_REJECTS(expression, name)                                                                    \
+    do {                                                                                                   \
+        const std::string message_ = thrown_message([&] { static_cast<void>(expression); });              \
+        CHECK_MESSAGE(message_.find(name) != std::string::npos,                                            \
+                      #expression " should throw std::invalid_argument naming " name ", got: " << message_); \
+    } while (false)
+
+}  // namespace
+
+TEST_CASE("optical thickness 0, 1e-300, 1e-12, huge and +infinity are accepted; negative and NaN rejected") {
+    // +infinity is the documented semi-infinite slab (slab.hpp: tau in [0, +inf]).
+    for (const Faces& faces : face_kinds())
+        for (double albedo : {0.0, 0.5, 1.0})
+            for (double tau : {0.0, 1e-300, denormal, 1e-12, 1e6, 1e300, huge, inf}) {
+                if (faces.rough() && (albedo == 0.5 || tau == denormal || tau == 1e6 || tau == 1e300)) continue;
+                const auto layer = solve_layer(Slab<double>(albedo, 0.5, tau), faces.top, faces.bottom, with_ordinates(4));
+                check_surface(layer, std::string(faces.name) + ", albedo " + fmt(albedo) + ", tau " + fmt(tau));
+            }
+    // Continuity at both ends.
+    for (const Faces& faces : face_kinds())
+        for (double albedo : {0.0, 1.0}) {
+            if (faces.rough() && albedo == 0) continue;
+            auto at = [&](double tau) {
+                const auto l = solve_layer(Slab<double>(albedo, 0.5, tau), faces.top, faces.bottom, with_ordinates(4));
+                return std::vector<double>{l.albedo(0.6).total(), l.transmittance(0.6), l.albedo(0.2).total(),
+                                           l.transmittance(0.2)};
+            };
+            const std::vector<double> zero = at(0.0), thin = at(1e-12), thick = at(1e300), semi = at(inf);
+            INFO(std::string(faces.name) << ", albedo " << albedo);
+            for (std::size_t i = 0; i < zero.size(); ++i) {
+                CHECK(std::fabs(zero[i] - thin[i]) < 1e-9);
+                CHECK(std::fabs(thick[i] - semi[i]) < 1e-12);
+            }
+        }
+    for (double tau : {-1.0, -1e-300, -inf, not_a_number}) CHECK_REJECTS(Slab<double>(0.5, 0.5, tau), "optical_thickness");
+    for (double tau : {-1.0, not_a_number}) CHECK_REJECTS(Slab<double>::from_one_minus_albedo(0.5, 0.5, tau), "optical_thickness");
+    for (double x : {-0.1, 1.1, not_a_number, inf}) CHECK_REJECTS(Slab<double>::from_transparency(0.5, 0.5, x), "transparency");
+    // The transparency's ends are the two ends of tau.
+    CHECK(Slab<double>::from_transparency(0.5, 0.5, 0.0).optical_thickness() == inf);
+    CHECK(Slab<double>::from_transparency(0.5, 0.5, 1.0).optical_thickness() == 0);
+    CHECK(std::isfinite(Slab<double>::from_transparency(0.5, 0.5, denormal).optical_thickness()));
+}
+
+TEST_CASE("single-scattering albedo 0 and 1 and asymmetry 0, +-(1 - 1e-12) are accepted; g = +-1 rejected") {
+    for (const Faces& faces : face_kinds())
+        for (double albedo : {0.0, 1.0})
+            for (double g : {0.0, 1 - 1e-12, -(1 - 1e-12), 0.5, -0.5})
+                for (bool delta_m : {true, false})
+                    for (double tau : {1.0, inf}) {
+                        if (faces.rough() && (tau == inf || std::fabs(g) == 0.5)) continue;
+                        const auto layer = solve_layer(Slab<double>(albedo, g, tau), faces.top, faces.bottom,
+                                                       with_ordinates(4, 0, delta_m));
+                        // Documented limitation (README, known limitations): a phase function too peaked for the
+                        // ordinates and not delta-M scaled (|g| > 0.9 with delta-M off, or g < -0.9, whose
+                        // backward peak delta-M cannot remove) has a truncated expansion that is negative in
+                        // places; the slab solver regularizes it, and the negative (Gibbs) reflectance that
+                        // remains is returned as 0, which creates energy. Measured here: 2.9e-4 (rough | index
+                        // matched, g = 1 - 1e-12 without delta-M, albedo 1, tau 1, mu = 1); elsewhere up to 16%.
+                        const bool aliased = std::fabs(g) > 0.9 && (!delta_m || g < 0);
+                        check_surface(layer,
+                                      std::string(faces.name) + ", albedo " + fmt(albedo) + ", g " + fmt(g) + ", delta-M " +
+                                          (delta_m ? "on" : "off") + ", tau " + fmt(tau),
+                                      aliased ? 1e-3 : slack);
+                    }
+    // Albedo 1 - 1e-300 rounds to 1; from_one_minus_albedo keeps tiny absorptions.
+    for (double om : {0.0, denormal, 1e-300, 1e-17, 1.0})
+        check_surface(solve_layer(Slab<double>::from_one_minus_albedo(om, 0.5, 3.0), SmoothDielectric<double>(1.0, 1.4),
+                                  SmoothDielectric<double>(1.4, 1.0), with_ordinates(4)),
+                      "1 - albedo " + fmt(om));
+    for (double g : {1.0, -1.0, 1 + 1e-12, -1.5, inf, -inf, not_a_number}) CHECK_REJECTS(Slab<double>(0.5, g, 1.0), "g =");
+    for (double albedo : {-1e-300, -0.1, 1 + 1e-12, inf, not_a_number}) CHECK_REJECTS(Slab<double>(albedo, 0.5, 1.0), "stratum: albedo =");
+    for (double om : {-1e-300, 1.1, not_a_number}) CHECK_REJECTS(Slab<double>::from_one_minus_albedo(om, 0.5, 1.0), "one_minus_albedo");
+    CHECK_REJECTS(Slab<double>::from_transparency(not_a_number, 0.5, 0.5), "stratum: albedo =");
+}
+
+TEST_CASE("boundaries: roughness from 1e-300 to 1e10, index ratios 1 and 1 +- 1e-12, smooth and index matched") {
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    for (double sigma : {1e-8, 1e-30, 1e-300, 10.0, 1e3, 1e10}) {
+        if (sigma < 1)  // (huge sigma: ~0.5 s a face for the transmittance table; one face below is enough)
+            check_surface(solve_layer(slab, RoughDielectric<double>(sigma, 1.0, 1.4),
+                                      RoughDielectric<double>(sigma, 1.4, 1.0), with_ordinates(4)),
+                          "rough | rough, sigma " + fmt(sigma));
+        check_surface(solve_layer(slab, RoughDielectric<double>(sigma, 1.0, 1.4), SmoothDielectric<double>(1.4, 1.0),
+                                  with_ordinates(3)),
+                      "rough | smooth, sigma " + fmt(sigma));
+    }
+    // sigma = 0: the smooth limit, once RoughDielectric accepts it.
+    bool sigma_zero = true;
+    try {
+        static_cast<void>(RoughDielectric<double>(0.0, 1.0, 1.4));
+    } catch (const std::invalid_argument& e) {
+        sigma_zero = false;
+        MESSAGE("skipped: RoughDielectric<double>(0.0, 1.0, 1.4) throws (" << e.what() << ")");
+    }
+    if (sigma_zero) {
+        const auto rough0 = solve_layer(slab, RoughDielectric<double>(0.0, 1.0, 1.4), RoughDielectric<double>(0.0, 1.4, 1.0),
+                                        with_ordinates(4));
+        const auto smooth = solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0),
+                                        with_ordinates(4));
+        check_surface(rough0, "rough | rough, sigma 0");
+        // ... and it is exactly the smooth layer.
+        for (double mu : {1.0, 0.5, 0.1}) {
+            CHECK(rough0.albedo(mu).total() == doctest::Approx(smooth.albedo(mu).total()).epsilon(1e-14));
+            CHECK(rough0.transmittance(mu) == doctest::Approx(smooth.transmittance(mu)).epsilon(1e-14));
+        }
+    }
+    // Index ratios 1 and 1 +- 1e-12 on either face, rough and smooth; the layer's index n2 = eta.
+    for (double eta : {1.0, 1 + 1e-12, 1 - 1e-12}) {
+        check_surface(solve_layer(slab, RoughDielectric<double>(0.3, 1.0, eta), RoughDielectric<double>(0.3, eta, 1.0),
+                                  with_ordinates(4)),
+                      "rough | rough, n2 = " + fmt(eta));
+        check_surface(solve_layer(slab, SmoothDielectric<double>(1.0, eta), SmoothDielectric<double>(eta, 1.0),
+                                  with_ordinates(4)),
+                      "smooth | smooth, n2 = " + fmt(eta));
+        check_surface(solve_layer(slab, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.4 * eta),
+                                  with_ordinates(4)),
+                      "rough | rough, n3 / n2 = " + fmt(eta));
+        check_surface(solve_layer(slab, SmoothDielectric<double>(1.4, 1.4 * eta), Boundary<double>::index_matched(1.4 * eta),
+                                  with_ordinates(4)),
+                      "smooth | index matched, n2 / n1 = " + fmt(eta));
+    }
+    // Index matched, and the mixed pairs; a layer less dense than the medium above (total internal reflection
+    // of light from above is impossible, but the layer's own escape cone is the whole hemisphere).
+    check_surface(solve_layer(slab, Boundary<double>::index_matched(1.4), RoughDielectric<double>(0.3, 1.4, 1.0),
+                              with_ordinates(4)),
+                  "index matched | rough");
+    check_surface(solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0),
+                              with_ordinates(4)),
+                  "smooth | rough");
+    check_surface(solve_layer(slab, SmoothDielectric<double>(1.4, 1.0), SmoothDielectric<double>(1.0, 1.4),
+                              with_ordinates(4)),
+                  "smooth 1.4 | 1.0 | 1.4");
+    check_surface(solve_layer(slab, RoughDielectric<double>(0.3, 1.4, 1.0), RoughDielectric<double>(0.3, 1.0, 2.5),
+                              with_ordinates(4)),
+                  "rough 1.4 | 1.0 | 2.5");
+    // Rejected: NaN, negative, zero and infinite indices, NaN, negative and infinite roughness.
+    for (double eta : {0.0, -1.0, inf, not_a_number}) {
+        CHECK_REJECTS(SmoothDielectric<double>(eta, 1.4), "eta_above");
+        CHECK_REJECTS(SmoothDielectric<double>(1.0, eta), "eta_below");
+        CHECK_REJECTS(RoughDielectric<double>(0.3, eta, 1.4), "eta_above");
+        CHECK_REJECTS(RoughDielectric<double>(0.3, 1.0, eta), "eta_below");
+        CHECK_REJECTS(Boundary<double>::index_matched(eta), "eta_above");
+    }
+    for (double sigma : {-1.0, -1e-300, inf, not_a_number}) CHECK_REJECTS(RoughDielectric<double>(sigma, 1.0, 1.4), "sigma");
+}
+
+TEST_CASE("options: ordinates 1, 2, 3 and one mode are accepted; 0 and negative counts rejected") {
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    for (const Faces& faces : face_kinds())
+        for (int m : {1, 2, 3})
+            for (int modes : {0, 1})
+                for (double tau : {1.0, inf})
+                    if (!faces.rough() || tau == 1.0)
+                        check_surface(solve_layer(Slab<double>(0.9, 0.5, tau), faces.top, faces.bottom, with_ordinates(m, modes)),
+                                  std::string(faces.name) + ", M = " + std::to_string(m) + ", modes " +
+                                      std::to_string(modes) + ", tau " + fmt(tau));
+    // Non-default discretization choices.
+    for (const Faces& faces : face_kinds()) {
+        LayerOptions o = with_ordinates(3, 0, false);
+        o.renormalization = stratum::Renormalization::none;
+        o.specular_transmission = stratum::SpecularTransmission::pointwise;
+        check_surface(solve_layer(slab, faces.top, faces.bottom, o), std::string(faces.name) + ", no renormalization");
+    }
+    const Boundary<double> top = RoughDielectric<double>(0.3, 1.0, 1.4), bottom = SmoothDielectric<double>(1.4, 1.0);
+    for (int m : {0, -1, INT_MIN}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(m)), "options.ordinates");
+    for (int k : {-1, INT_MIN}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3, k)), "options.modes");
+}
+
+TEST_CASE("requests: incidences 1, 1e-300 and denormal are accepted and cached; 0, > 1, NaN and negative rejected") {
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    for (const Faces& faces : face_kinds()) {
+        if (faces.rough() && faces.bottom.rough_interface() == std::nullopt) continue;  // rough | index matched
+        const auto plain = solve_layer(slab, faces.top, faces.bottom, with_ordinates(4));
+        LayerRequest<double> r;
+        r.incidence = {1.0, 1e-300, denormal, 0.5, 0.5};
+        const auto cached = solve_layer(slab, faces.top, faces.bottom, with_ordinates(4), r);
+        check_surface(cached, std::string(faces.name) + ", cached incidences");
+        for (double mu : r.incidence) {
+            INFO(std::string(faces.name) << ", mu = " << mu);
+            CHECK(cached.albedo(mu).total() == doctest::Approx(plain.albedo(mu).total()).epsilon(1e-14));
+            CHECK(cached.transmittance(mu) == doctest::Approx(plain.transmittance(mu)).epsilon(1e-14));
+            const Vec3<double> wi{std::sqrt((1 - mu) * (1 + mu)), 0, mu}, wo = direction(0.5, 1.0);
+            CHECK(cached.brdf(wi, wo) == doctest::Approx(plain.brdf(wi, wo)).epsilon(1e-14));
+            CHECK(cached.btdf(wi, flip(wo)) == doctest::Approx(plain.btdf(wi, flip(wo))).epsilon(1e-14));
+        }
+        // A tolerance and a mode cap at their extremes; the outputs one at a time and none at all.
+        for (double tol : {denormal, 1e-300, 0.5, 1 - 1e-16}) {
+            if (faces.rough() && (tol == 1e-300 || tol == 1 - 1e-16)) continue;
+            LayerRequest<double> t;
+            t.tolerance = tol;
+            check_surface(solve_layer(slab, faces.top, faces.bottom, with_ordinates(4), t),
+                          std::string(faces.name) + ", tolerance " + fmt(tol));
+            t.outputs = LayerOutput::subsurface_reflection;  // lets a thick slab be solved as semi-infinite
+            check_surface(solve_layer(Slab<double>(0.9, 0.5, 40.0), faces.top, faces.bottom, with_ordinates(4), t),
+                          std::string(faces.name) + ", reflection only, tau 40, tolerance " + fmt(tol));
+        }
+        LayerRequest<double> cap;
+        cap.max_modes = 1;
+        check_surface(solve_layer(slab, faces.top, faces.bottom, with_ordinates(4), cap),
+                      std::string(faces.name) + ", max_modes 1");
+        for (LayerOutput o : {LayerOutput::surface_reflection, LayerOutput::subsurface_reflection, LayerOutput::transmission,
+                              LayerOutput::ambient, LayerOutput::operators, static_cast<LayerOutput>(0)}) {
+            LayerRequest<double> one;
+            one.outputs = o;
+            const auto layer = solve_layer(slab, faces.top, faces.bottom, with_ordinates(3), one);
+            check_surface(layer, std::string(faces.name) + ", outputs " + std::to_string(static_cast<unsigned>(o)));
+            // What was not requested evaluates to 0.
+            const Vec3<double> wi = direction(0.8, 0.3), wo = direction(0.5, 1.0);
+            if (!includes(o, LayerOutput::subsurface_reflection)) {
+                CHECK(layer.subsurface_brdf(wi, wo) == 0);
+                CHECK(layer.albedo(0.5).subsurface == 0);
+            }
+            if (!includes(o, LayerOutput::transmission)) {
+                CHECK(layer.btdf(wi, flip(wo)) == 0);
+                CHECK(layer.transmittance(0.5) == 0);
+            }
+            if (!includes(o, LayerOutput::ambient)) CHECK(layer.ambient(wo) == 0);
+        }
+    }
+    const Boundary<double> top = RoughDielectric<double>(0.3, 1.0, 1.4), bottom = SmoothDielectric<double>(1.4, 1.0);
+    for (double mu : {0.0, -0.0, -denormal, -0.5, std::nextafter(1.0, 2.0), 2.0, inf, -inf, not_a_number}) {
+        LayerRequest<double> r;
+        r.incidence = {0.5, mu};
+        CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3), r), "request.incidence[1]");
+    }
+    for (double tol : {-denormal, -1.0, 1.0, inf, not_a_number}) {
+        LayerRequest<double> r;
+        r.tolerance = tol;
+        CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3), r), "request.tolerance");
+    }
+    for (int k : {-1, INT_MIN}) {
+        LayerRequest<double> r;
+        r.max_modes = k;
+        CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3), r), "request.max_modes");
+    }
+}
+
+TEST_CASE("solve_stack: extreme slabs and every kind of interior boundary; inconsistent stacks rejected") {
+    const Boundary<double> top = RoughDielectric<double>(0.3, 1.0, 1.4), bottom = RoughDielectric<double>(0.3, 1.33, 1.0);
+    const Boundary<double> smooth_top = SmoothDielectric<double>(1.0, 1.4), smooth_bottom = SmoothDielectric<double>(1.33, 1.0);
+    const std::vector<Boundary<double>> interiors = {RoughDielectric<double>(0.2, 1.4, 1.33), SmoothDielectric<double>(1.4, 1.33),
+                                                     RoughDielectric<double>(1e3, 1.4, 1.33),
+                                                     RoughDielectric<double>(1e-30, 1.4, 1.33)};
+    for (const Boundary<double>& inner : interiors)
+        for (double tau : {0.0, 1e-300, 1.0, huge, inf})
+            for (double albedo : {0.0, 1.0}) {
+                const std::vector<Slab<double>> slabs = {Slab<double>(albedo, 0.5, tau), Slab<double>(0.9, -0.3, 2.0)};
+                const std::string name = "albedo " + fmt(albedo) + ", tau " + fmt(tau) + " over tau 2, interior " +
+                                         (inner.rough() ? "rough" : "smooth");
+                if (albedo == 1 && (tau == 0 || tau == inf))
+                    check_surface(solve_stack(top, slabs, {inner}, bottom, with_ordinates(3)), "rough stack, " + name);
+                check_surface(solve_stack(smooth_top, slabs, {inner}, smooth_bottom, with_ordinates(3)), "smooth stack, " + name);
+            }
+    // Three slabs, the middle one semi-infinite or empty, index-matched interior faces.
+    for (double tau : {0.0, inf})
+        check_surface(solve_stack<double>(top, {Slab<double>(0.9, 0.5, 1.0), Slab<double>(1.0, 0.5, tau), Slab<double>(0.5, 0.0, 1.0)},
+                                  {Boundary<double>::index_matched(1.4), Boundary<double>::index_matched(1.4)},
+                                  RoughDielectric<double>(0.3, 1.4, 1.0), with_ordinates(3)),
+                      "three slabs, middle tau " + fmt(tau));
+    // A thin slab between smooth faces in a stack: with the default options energy is never created, for any
+    // ordinate count. Before: ordinates below the critical cosine (totally reflected at both faces) received light
+    // from the interior face's beam splitting and leaked it back out through its pointwise interpolation, without
+    // bound at tau -> 0 (R + T = 1102 at M = 12, tau = 0; 1.19 at M = 8, tau = 1e-3, albedo 1), and pointwise
+    // interior faces alone created up to 26% (M = 4).
+    for (int m = 2; m <= 12; ++m)
+        for (double tau : {0.0, 1e-3, 1.0})
+            for (bool rough_top : {false, true}) {
+                if (rough_top && m != 2 && m != 4 && m != 7) continue;  // (rough: slower; the worst cases measured)
+                const auto stack = solve_stack<double>(rough_top ? top : smooth_top,
+                                                       {Slab<double>(0.0, 0.5, tau), Slab<double>(1.0, -0.3, 2.0)},
+                                                       {SmoothDielectric<double>(1.4, 1.33)}, smooth_bottom, with_ordinates(m));
+                for (double mu : {0.05, 0.3, 0.7, 1.0}) {
+                    INFO("M = " << m << ", tau " << tau << (rough_top ? ", rough top" : ", smooth top") << ", mu " << mu);
+                    const double r = stack.albedo(mu).total(), t = stack.transmittance(mu);
+                    CHECK(r >= 0);
+                    CHECK(t >= 0);
+                    CHECK(r + t <= 1 + slack);
+                }
+            }
+    // An explicit SpecularTransmission::pointwise keeps the interior faces radiance-accurate but not energy-
+    // conserving (documented: README, known limitations; R + T up to 1.9 measured for a zero-thickness slab
+    // between smooth faces, M = 2..16): values stay finite and >= 0.
+    {
+        LayerOptions pointwise = with_ordinates(3);
+        pointwise.specular_transmission = stratum::SpecularTransmission::pointwise;
+        for (double tau : {0.0, 1.0})
+            check_surface(solve_stack<double>(smooth_top, {Slab<double>(0.0, 0.5, tau), Slab<double>(1.0, -0.3, 2.0)},
+                                              {SmoothDielectric<double>(1.4, 1.33)}, smooth_bottom, pointwise),
+                          "smooth stack, pointwise interior face, tau " + fmt(tau), 1.0);
+    }
+    // A semi-infinite top slab hides everything below it.
+    {
+        const auto stack = solve_stack<double>(top, {Slab<double>(0.9, 0.5, inf), Slab<double>(1.0, 0.0, 1.0)},
+                                       {SmoothDielectric<double>(1.4, 1.33)}, bottom, with_ordinates(3));
+        CHECK(stack.transmittance(0.5) == 0);
+        CHECK(stack.btdf(direction(0.8, 0.3), direction(-0.5, 1.0)) == 0);
+    }
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    CHECK_REJECTS((solve_stack<double>(top, {}, {}, bottom, with_ordinates(3))), "slabs.size()");
+    CHECK_REJECTS((solve_stack<double>(top, {slab, slab}, {}, bottom, with_ordinates(3))), "interior.size()");
+    CHECK_REJECTS(solve_stack<double>(top, {slab}, {interiors[0]}, bottom, with_ordinates(3)), "interior.size()");
+    CHECK_REJECTS((solve_stack<double>(top, {slab, slab}, {SmoothDielectric<double>(1.33, 1.4)}, bottom, with_ordinates(3))), "disagree");
+    CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3)), "disagree");
+    CHECK_REJECTS((solve_stack<double>(top, {slab, slab}, {interiors[0]}, bottom, with_ordinates(0))), "options.ordinates");
+}
