@@ -368,7 +368,7 @@ TEST_CASE("bad input raises std::invalid_argument naming the value and the range
     CHECK(message([] { Dipole<double>(0.0, 0.0, 1.3); }).find("sigma_a + sigma_s_prime = 0") != std::string::npos);
     CHECK(message([] { Dipole<double>(1.0, 1.0, 0.9); }).find("eta = 0.9") != std::string::npos);
     CHECK_NOTHROW(Dipole<double>(1.0, 1.0, 0.9, DiffuseFresnel::exact));
-    CHECK(message([] { Dipole<double>(1.0, 1.0, -1.0, DiffuseFresnel::exact); }).find("(0, inf)") != std::string::npos);
+    CHECK(message([] { Dipole<double>(1.0, 1.0, -1.0, DiffuseFresnel::exact); }).find("[0.0001, 10000]") != std::string::npos);
     CHECK(message([] { alpha_prime_from_reflectance(1.5, 1.3); })
               .find("Rd = 1.5 is outside the allowed range [0, 1]") != std::string::npos);
     CHECK(message([] { alpha_prime_from_reflectance(-1e-9, 1.3); }).find("Rd = -1.0000000000000001e-09") !=
@@ -418,6 +418,32 @@ TEST_CASE("sample_radius inverts the CDF exactly, including xi = 0 and xi -> 1")
     CHECK(top > 35.0);
     CHECK(top < 45.0);
     CHECK(std::isfinite(Dipole<float>(0.5f, 1.0f, 1.3f).sample_radius(1.0f)));
+}
+
+TEST_CASE("eta outside the F_dr model's range is refused (found by fuzz_pointwise: eta = 5e120 gave R_d < 0)") {
+    // The Jensen fit exceeds 1 beyond eta ~ 3.8 (A < 0, so z_v < 0 and R_d < 0): it is accepted on [1, 3] only.
+    CHECK(stratum::fresnel_diffuse_reflectance_fit(3.9) > 1.0);
+    CHECK_THROWS_WITH_AS(DipoleBoundary<double>::from_eta(3.5), doctest::Contains("[1, 3]"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(Dipole<double>(18.66, 1e-6, 5.1e120), doctest::Contains("eta"), std::invalid_argument);
+    CHECK_THROWS_AS(DipoleBoundary<double>::from_eta(2e4, DiffuseFresnel::exact), std::invalid_argument);
+    CHECK_NOTHROW(DipoleBoundary<double>::from_eta(3.0));
+    const auto far = DipoleBoundary<double>::from_eta(1e4, DiffuseFresnel::exact);
+    CHECK(std::isfinite(far.A));
+    CHECK(far.A > 1);
+    const Dipole<double> d(18.66, 1e-6, far);
+    CHECK(d.Rd(1e-9) >= 0.0);
+    CHECK(std::isfinite(d.Rd(1e-9)));
+}
+
+TEST_CASE("pdf_radius stays finite for extreme coefficients (found by fuzz_pointwise)") {
+    // sigma_a = 2.8e154 gives sigma_tr = 4.9e154, whose square overflows: sigma_tr^2 r e^{-sigma_tr r} was inf * 0.
+    const stratum::Dipole<double> d(2.8059504291138784e154, 1e-6, 2.5);
+    CHECK(d.pdf_radius(1e-9) == 0.0);
+    CHECK(d.pdf_radius(1e-160) > 0.0);  // u = sigma_tr r ~ 5e-6: sigma_tr u e^{-u} ~ 2e149
+    CHECK(std::isfinite(d.pdf_radius(1e-160)));
+    const stratum::Dipole<double> skin(0.032, 0.74, 1.3);
+    const double st = skin.sigma_tr(), r = 0.7;
+    CHECK(skin.pdf_radius(r) == doctest::Approx(st * st * r * std::exp(-st * r)).epsilon(1e-15));
 }
 
 TEST_CASE("sample_radius follows pdf_radius (chi-square, 60 bins)") {

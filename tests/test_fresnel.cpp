@@ -36,6 +36,19 @@ TEST_CASE("total internal reflection gives exactly 1 beyond the critical angle")
     CHECK(fresnel_dielectric(0.0, 1.4) == 1.0);              // grazing from the light side
 }
 
+TEST_CASE("grazing incidence gives exactly 1, never an ulp above (found by fuzz_pointwise at eta = 974.67)") {
+    for (double eta : {974.67113628700076, 1.5, 3.0, 1e3, 1e4, 1e-4, 0.5}) CHECK(stratum::fresnel_dielectric(0.0, eta) == 1.0);
+    for (float eta : {974.671f, 1.5f, 1e4f, 1e-4f}) CHECK(stratum::fresnel_dielectric(0.0f, eta) == 1.0f);
+    // Just above grazing the formulas round to 1 + 4.4e-16 without the clamp (e.g. eta = 1.2099, cos = 7.1e-18).
+    double worst = 0;
+    for (int e = 0; e <= 800; ++e) {
+        const double eta = std::pow(10.0, -4 + e / 100.0);
+        for (int k = 1; k <= 60; ++k) worst = std::fmax(worst, stratum::fresnel_dielectric(std::ldexp(1.0, -k), eta));
+    }
+    CHECK(worst <= 1.0);
+    CHECK(stratum::fresnel_dielectric(7.105427357601002e-18, 1.2099224003493465) <= 1.0);
+}
+
 TEST_CASE("a negative cosine means the light arrives from the other side") {
     for (double mu : {0.2, 0.7, 0.95}) CHECK(fresnel_dielectric(-mu, 1.4) == fresnel_dielectric(mu, 1 / 1.4));
 }

@@ -346,10 +346,18 @@ TEST_CASE("float, double and long double instantiations agree") {
 TEST_CASE("invalid parameters are rejected with messages naming them") {
     // sigma = 0 is the smooth limit (test_interface_smooth_limit.cpp); negative, NaN and infinite sigma are not.
     CHECK_THROWS_WITH_AS(RoughDielectric<double>(-0.1, 1.0, 1.4), doctest::Contains("sigma"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(RoughDielectric<double>(4.75e140, 0.217, 0.54), doctest::Contains("sigma"), std::invalid_argument);
+    CHECK_NOTHROW(RoughDielectric<double>(1e10, 0.217, 0.54));
     CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, -1.0, 1.4), doctest::Contains("eta_above"), std::invalid_argument);
     CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, 1.0, std::numeric_limits<double>::quiet_NaN()),
                          doctest::Contains("eta_below"), std::invalid_argument);
     CHECK_THROWS_WITH_AS(SmoothDielectric<double>(0.0, 1.4), doctest::Contains("eta_above"), std::invalid_argument);
+    // Indices beyond [1e-4, 1e4] are refused: a layer between 2.34 and 1.6e140 (found by fuzz_layer) gave NaN,
+    // the fourth power of the index ratio overflowing.
+    CHECK_THROWS_WITH_AS(RoughDielectric<double>(0.3, 1.0, 1.6e140), doctest::Contains("eta_below"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(SmoothDielectric<double>(2.34, 2e4), doctest::Contains("[0.0001, 10000]"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(SmoothDielectric<float>(5e-5f, 1.4f), doctest::Contains("eta_above"), std::invalid_argument);
+    CHECK_NOTHROW(SmoothDielectric<float>(1e-4f, 1e4f));
     const RoughDielectric<double> rd(0.3, 1.0, 1.4);
     CHECK_THROWS_WITH_AS((void)rd.albedo(0.5, 1), doctest::Contains("nodes"), std::invalid_argument);
 }

@@ -52,8 +52,8 @@ namespace stratum {
 
 /// Which internal diffuse Fresnel reflectance F_dr enters A = (1 + F_dr) / (1 - F_dr).
 enum class DiffuseFresnel {
-    jensen_fit,  ///< Egan-Hilgeman fit (Jensen 2001, Hery); eta >= 1 only. The default.
-    exact,       ///< exact hemispherical average (fresnel_diffuse_reflectance); any eta > 0.
+    jensen_fit,  ///< Egan-Hilgeman fit (Jensen 2001, Hery); eta in [1, 3] only. The default.
+    exact,       ///< exact hemispherical average (fresnel_diffuse_reflectance); eta in [1e-4, 1e4].
 };
 
 /// The boundary of a semi-infinite diffusing medium: its relative index eta = n_medium / n_outside and the
@@ -64,16 +64,17 @@ struct DipoleBoundary {
     Real eta = 1;
     Real A = 1;
 
-    /// Throws std::invalid_argument unless eta is finite and > 0 (exact) or >= 1 (jensen_fit).
+    /// Throws std::invalid_argument unless eta is in [1, 3] (jensen_fit: the range where its error is stated;
+    /// beyond ~3.8 the fit exceeds 1 and A turns negative, which made R_d negative) or in [1e-4, 1e4] (exact).
     static DipoleBoundary from_eta(Real eta, DiffuseFresnel model = DiffuseFresnel::jensen_fit) {
         if (model == DiffuseFresnel::jensen_fit) {
-            if (!(eta >= 1 && std::isfinite(eta)))
-                detail::throw_out_of_range("eta", eta, "[1, inf) for the Jensen F_dr fit (DiffuseFresnel::exact "
-                                                       "accepts (0, inf))");
+            if (!(eta >= 1 && eta <= 3))
+                detail::throw_out_of_range("eta", eta, "[1, 3] for the Jensen F_dr fit (DiffuseFresnel::exact "
+                                                       "accepts [0.0001, 10000])");
             const Real f = fresnel_diffuse_reflectance_fit(eta);
             return {eta, (1 + f) / (1 - f)};
         }
-        detail::require_positive("eta", eta);
+        detail::require_refractive_index("eta", eta);
         const Real f = fresnel_diffuse_reflectance(eta);
         return {eta, (1 + f) / (1 - f)};
     }
@@ -380,7 +381,8 @@ public:
     /// (0 everywhere when sigma_tr = 0).
     STRATUM_HOST_DEVICE Real pdf_radius(Real r) const noexcept {
         if (!(r >= 0) || !(r < std::numeric_limits<Real>::infinity())) return Real(0);
-        return sigma_tr_ * sigma_tr_ * r * std::exp(-sigma_tr_ * r);
+        const Real u = sigma_tr_ * r;  // sigma_tr (u e^{-u}): sigma_tr^2 alone overflows for sigma_tr > 1e154
+        return sigma_tr_ * (u * std::exp(-u));
     }
 
 private:

@@ -36,13 +36,14 @@ STRATUM_HOST_DEVICE Real fresnel_dielectric(Real cos_i, Real eta) noexcept {
     }
     const Real k2 = (eta - Real(1)) * (eta + Real(1));
     const Real m2 = cos_i * cos_i + k2;
-    if (m2 <= 0) return eta == Real(1) ? Real(0) : Real(1);  // TIR, or grazing with eta = 1
+    // TIR, and grazing incidence (exactly 1 for eta != 1: the formulas below round to 1 +- an ulp there).
+    if (m2 <= 0 || cos_i == 0) return eta == Real(1) ? Real(0) : Real(1);
     const Real m = std::sqrt(m2);
     const Real e2 = eta * eta;
     const Real ds = cos_i + m, dp = e2 * cos_i + m;
     const Real rs = -k2 / (ds * ds);
     const Real rp = k2 * ((e2 + Real(1)) * cos_i * cos_i - Real(1)) / (dp * dp);
-    return (rs * rs + rp * rp) / Real(2);
+    return std::fmin(Real(1), (rs * rs + rp * rp) / Real(2));  // near grazing, rounding can exceed 1 by an ulp
 }
 
 namespace detail {

@@ -112,6 +112,14 @@ Real require_nonnegative(const char* name, Real value) {
     return value;
 }
 
+/// Requires a refractive index in [1e-4, 1e4]: every physical index lies far inside, and the Fresnel and
+/// BTDF formulas, which use up to the fourth power of an index ratio, stay finite in float and double.
+template <class Real>
+Real require_refractive_index(const char* name, Real value) {
+    if (!(value >= Real(1e-4) && value <= Real(1e4))) throw_out_of_range(name, value, "[0.0001, 10000]");
+    return value;
+}
+
 /// Requires an integer count >= lo.
 inline int require_count(const char* name, int value, int lo) {
     if (value < lo) throw_out_of_range(name, value, "[" + std::to_string(lo) + ", inf)");
