@@ -23,14 +23,14 @@ double median_ms(const std::function<void()>& f, int repeats = 5) { return strat
 
 // ---- Layer solver: ordinates M (with K = 2M modes) on Stam's skin layer -------------------------------------
 struct SkinProbe {
-    double albedo[3], transmittance[3], brdf[4], btdf[4];
+    double reflectance[3], transmittance[3], brdf[4], btdf[4];
 };
 
 SkinProbe probe(const stratum::LayeredSurface<double>& layer) {
     SkinProbe p{};
     const double mus[3] = {1.0, 0.7, 0.3};
     for (int i = 0; i < 3; ++i) {
-        p.albedo[i] = layer.albedo(mus[i]).subsurface;
+        p.reflectance[i] = layer.reflectance(mus[i]).subsurface;
         p.transmittance[i] = layer.transmittance(mus[i]);
     }
     const stratum::Vec3<double> wi = stratum::spherical_direction(0.8, 0.0);
@@ -60,15 +60,15 @@ void layer_ordinates() {
     const SkinProbe ref = probe(solve(reference_m));
     std::printf("\n## Layer solver: ordinates\n\nStam's skin layer (n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8, "
                 "e^-tau 0.5), K = 2M modes, delta-M. Error: max relative difference from M = %d over the "
-                "subsurface albedo and transmittance at mu0 = 1, 0.7, 0.3 and r_s, t_s at 4 directions "
+                "subsurface reflectance and transmittance at mu0 = 1, 0.7, 0.3 and r_s, t_s at 4 directions "
                 "(mu0 = 0.8). Time: solve_layer, all outputs.\n\n", reference_m);
-    std::printf("| M | K | albedo/transmittance error | r_s error | t_s error | solve (ms) | r_s eval (us) |\n");
+    std::printf("| M | K | reflectance/transmittance error | r_s error | t_s error | solve (ms) | r_s eval (us) |\n");
     std::printf("|---|---|---|---|---|---|---|\n");
     for (int m : {4, 8, 12, 16, 24, 32}) {
         stratum::LayeredSurface<double> layer = solve(m);
         const double t = median_ms([&] { layer = solve(m); }, 3);
         const SkinProbe p = probe(layer);
-        const double e_flux = std::max(max_relative(p.albedo, ref.albedo, 3), max_relative(p.transmittance, ref.transmittance, 3));
+        const double e_flux = std::max(max_relative(p.reflectance, ref.reflectance, 3), max_relative(p.transmittance, ref.transmittance, 3));
         stratum::LayeredSurface<double>::Workspace ws;
         const stratum::Vec3<double> wi = stratum::spherical_direction(0.8, 0.0), wo = stratum::spherical_direction(0.5, 2.0);
         double sink = 0;

@@ -38,7 +38,7 @@ void BM_interface_operators_coefficients(benchmark::State& state) {
     double out[48];
     double mu = 0.3;
     for (auto _ : state) {
-        ops.t12(mu, 0.8, out);
+        ops.t12_coefficients(mu, 0.8, out);
         benchmark::DoNotOptimize(out);
         mu = mu == 0.3 ? 0.7 : 0.3;
     }

@@ -31,7 +31,7 @@ int main() {
     std::printf("theta_i   surface   subsurface   albedo   transmittance   absorbed+lost\n");
     for (Real deg : {0.0, 30.0, 60.0, 80.0}) {
         const Real mu = std::cos(deg * pi / 180);
-        const auto a = layer.albedo(mu);
+        const auto a = layer.reflectance(mu);
         const Real t = layer.transmittance(mu);
         std::printf("%5.0f     %.4f    %.4f       %.4f   %.4f          %.4f\n", deg, a.surface, a.subsurface,
                     a.total(), t, 1 - a.total() - t);

@@ -1,5 +1,5 @@
 // The rough-dielectric albedo integral as it was before the fast path (stratum commit 3df7dd5,
-// include/stratum/interface.hpp, detail::rough_albedo): slow (2-5 ms at 16 nodes, ~30 ms at 40) but simple,
+// include/stratum/interface.hpp, detail::rough_hemispherical_totals): slow (2-5 ms at 16 nodes, ~30 ms at 40) but simple,
 // kept here only as an independent reference for tests/test_interface_albedo.cpp. Differences from the fast
 // path: long Gaussian range (L = sqrt(ln(1/eps)) + 1), two fixed breakpoint grids, no pair grading, exact
 // Lambda and lgamma per facet. Its own error at 40 nodes, measured against 56: <= 4e-9 (masking_only near
@@ -16,14 +16,14 @@
 
 namespace stratum_test {
 
-using stratum::Albedo;
+using stratum::HemisphericalTotals;
 using stratum::Beckmann;
 using stratum::Quadrature;
 using stratum::Shadowing;
 using stratum::detail::pi_v;
 
 template <class W>
-Albedo<W> rough_albedo_reference(W sigma, W mu, W eta, Shadowing form, int n) {
+HemisphericalTotals<W> rough_albedo_reference(W sigma, W mu, W eta, Shadowing form, int n) {
     const Beckmann<W> dist(sigma);
     const W alpha = dist.alpha();
     const W s = std::sqrt((1 - mu) * (1 + mu));

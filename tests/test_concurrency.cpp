@@ -75,7 +75,7 @@ std::vector<double> evaluate_interface(const RoughDielectric<double>& rd) {
         out.insert(out.end(), {s.wo.x, s.wo.y, s.wo.z, s.value, s.pdf, double(s.reflected), double(s.delta)});
     }
     for (double mu : {0.9, 0.4, 0.05, -0.3, -0.8}) {
-        const auto a = rd.albedo(mu);
+        const auto a = rd.hemispherical_totals(mu);
         out.push_back(a.reflectance);
         out.push_back(a.transmittance);
     }
@@ -106,7 +106,7 @@ std::vector<double> evaluate_layer(const stratum::LayeredSurface<double>& layer)
         out.push_back(layer.ambient(wo, ws));
     }
     for (double mu : {1.0, 0.7, 0.3, 0.02, 1e-4}) {  // 1e-4: below the lazy table's first interval
-        const auto a = layer.albedo(mu);
+        const auto a = layer.reflectance(mu);
         out.push_back(a.surface);
         out.push_back(a.subsurface);
         out.push_back(layer.transmittance(mu));

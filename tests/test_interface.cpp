@@ -98,7 +98,7 @@ TEST_CASE("an index-matched interface reflects nothing and transmits straight th
         CHECK(rd.btdf(wi, -wi) == 0.0);  // a delta is not evaluated
         CHECK(rd.pdf(wi, -wi) == 0.0);
         for (double mu : {1.0, 0.5, 1e-8, -0.5}) {
-            const auto a = rd.albedo(mu);
+            const auto a = rd.hemispherical_totals(mu);
             CHECK(a.reflectance == 0.0);
             CHECK(a.transmittance == 1.0);
         }
@@ -141,13 +141,13 @@ TEST_CASE("indices within 1e-9 of matching: finite BTDF, vanishing reflection, c
     // index matching {0, 1} (the error is F ~ (eta - 1)^2 plus the quadrature's 1e-8).
     for (double mu : {0.9, 0.5}) {
         const RoughDielectric<double> near(0.3, 1.0, 1 + 1e-9, Shadowing::masking_only);
-        const auto a = near.albedo(mu);
+        const auto a = near.hemispherical_totals(mu);
         CHECK(a.reflectance < 1e-12);
         CHECK(std::fabs(a.transmittance - 1) < 1e-7);
         // With shadowing the eta -> 1 limit keeps the model's shadowing loss (documented in interface.hpp):
         // continuous in eta, and equal for eta = 1 +- 1e-9 and 1 + 1e-6 to within the quadrature error.
         const RoughDielectric<double> hc1(0.3, 1.0, 1 + 1e-9), hc2(0.3, 1.0, 1 / (1 + 1e-9)), hc3(0.3, 1.0, 1 + 1e-6);
-        const double t1 = hc1.albedo(mu).transmittance, t2 = hc2.albedo(mu).transmittance, t3 = hc3.albedo(mu).transmittance;
+        const double t1 = hc1.hemispherical_totals(mu).transmittance, t2 = hc2.hemispherical_totals(mu).transmittance, t3 = hc3.hemispherical_totals(mu).transmittance;
         CHECK(std::fabs(t1 - t2) < 1e-7);
         CHECK(std::fabs(t1 - t3) < 1e-7);
         CHECK(t1 <= 1.0);
@@ -170,7 +170,7 @@ TEST_CASE("total internal reflection: none transmitted by a smooth interface, a 
     double prev = -1;
     for (double sigma : {1e-3, 0.02, 0.1, 0.3, 1.0}) {
         const RoughDielectric<double> rd(sigma, 1.0, eta_dense);
-        const auto a = rd.albedo(-mu);
+        const auto a = rd.hemispherical_totals(-mu);
         CHECK(a.transmittance >= prev);
         prev = a.transmittance;
         if (sigma == 1e-3) CHECK(a.transmittance < 1e-12);  // the lobe is ~100 sigma away from any transmitting facet
@@ -178,7 +178,7 @@ TEST_CASE("total internal reflection: none transmitted by a smooth interface, a 
     CHECK(prev > 0.01);
     // Continuity across the critical angle for the rough interface.
     const RoughDielectric<double> rd(0.3, 1.0, eta_dense);
-    const double t_below = rd.albedo(-(mu_c - 1e-7)).transmittance, t_above = rd.albedo(-(mu_c + 1e-7)).transmittance;
+    const double t_below = rd.hemispherical_totals(-(mu_c - 1e-7)).transmittance, t_above = rd.hemispherical_totals(-(mu_c + 1e-7)).transmittance;
     CHECK(std::fabs(t_below - t_above) < 1e-5);
 }
 
@@ -200,7 +200,7 @@ TEST_CASE("hard limits: every sigma, eta near 1 and far, grazing and horizon dir
                                 CHECK(finite_nonnegative(rd.pdf(wi, wo)));
                             }
             for (double mu : {1.0, 1e-8, 0.0, -1e-4, -0.5}) {
-                const auto a = rd.albedo(mu);
+                const auto a = rd.hemispherical_totals(mu);
                 INFO("sigma " << sigma << " eta " << eta << " mu " << mu);
                 CHECK(finite_nonnegative(a.reflectance));
                 CHECK(finite_nonnegative(a.transmittance));
@@ -220,7 +220,7 @@ TEST_CASE("as sigma -> 0 the rough energies converge to the smooth interface's")
             double prev_err = 1;
             for (double sigma : {0.1, 0.02, 1e-3, 1e-4}) {
                 const RoughDielectric<double> rd(sigma, 1.0, eta);
-                const auto a = rd.albedo(mu);
+                const auto a = rd.hemispherical_totals(mu);
                 const double err = std::fmax(std::fabs(a.reflectance - sd.reflectance(mu)),
                                              std::fabs(a.transmittance - sd.transmittance(mu)));
                 INFO("eta " << eta << " mu " << mu << " sigma " << sigma << " err " << err);
@@ -340,7 +340,7 @@ TEST_CASE("float, double and long double instantiations agree") {
         CHECK(static_cast<double>(f.eval(to_f(wi), to_f(wo))) == doctest::Approx(ref).epsilon(1e-4));
         CHECK(static_cast<double>(l.eval(to_l(wi), to_l(wo))) == doctest::Approx(ref).epsilon(1e-13));
     }
-    CHECK(static_cast<double>(f.albedo(0.7f).transmittance) == doctest::Approx(d.albedo(0.7).transmittance).epsilon(1e-6));
+    CHECK(static_cast<double>(f.hemispherical_totals(0.7f).transmittance) == doctest::Approx(d.hemispherical_totals(0.7).transmittance).epsilon(1e-6));
 }
 
 TEST_CASE("invalid parameters are rejected with messages naming them") {
@@ -359,5 +359,5 @@ TEST_CASE("invalid parameters are rejected with messages naming them") {
     CHECK_THROWS_WITH_AS(SmoothDielectric<float>(5e-5f, 1.4f), doctest::Contains("eta_above"), std::invalid_argument);
     CHECK_NOTHROW(SmoothDielectric<float>(1e-4f, 1e4f));
     const RoughDielectric<double> rd(0.3, 1.0, 1.4);
-    CHECK_THROWS_WITH_AS((void)rd.albedo(0.5, 1), doctest::Contains("nodes"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS((void)rd.hemispherical_totals(0.5, 1), doctest::Contains("nodes"), std::invalid_argument);
 }

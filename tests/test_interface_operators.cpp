@@ -253,7 +253,7 @@ TEST_CASE("index-matched interfaces, rough or smooth, give exactly T = identity 
                     CHECK(ops->R21()(k, n, m) == 0.0);
                 }
         double out[5] = {1, 1, 1, 1, 1};
-        ops->t12(0.5, 0.5, out);  // a delta has no pointwise coefficients: zeros, never inf/NaN
+        ops->t12_coefficients(0.5, 0.5, out);  // a delta has no pointwise coefficients: zeros, never inf/NaN
         for (double v : out) CHECK(v == 0.0);
     }
 }
@@ -514,16 +514,16 @@ TEST_CASE("narrow lobes (sigma = 0.02): the coefficient functions integrate to t
             for (std::size_t j = 0; j < g.size(); ++j) {
                 const double mu = (p + g.nodes[j]) / panels, w = g.weights[j] / panels * mu;
                 double c[1];
-                ops.r12(mu_in, mu, c);
+                ops.r12_coefficients(mu_in, mu, c);
                 sums[0] += w * c[0];
-                ops.t12(mu_in, mu, c);
+                ops.t12_coefficients(mu_in, mu, c);
                 sums[1] += w * c[0];
-                ops.r21(mu_in, mu, c);
+                ops.r21_coefficients(mu_in, mu, c);
                 sums[2] += w * c[0];
-                ops.t21(mu_in, mu, c);
+                ops.t21_coefficients(mu_in, mu, c);
                 sums[3] += w * c[0];
             }
-        const auto above = rd.albedo(mu_in, 128), below = rd.albedo(-mu_in, 128);
+        const auto above = rd.hemispherical_totals(mu_in, 128), below = rd.hemispherical_totals(-mu_in, 128);
         CAPTURE(mu_in);
         CHECK(std::fabs(sums[0] - above.reflectance) <= 1e-9);
         CHECK(std::fabs(sums[1] - above.transmittance) <= 1e-9);
@@ -550,7 +550,7 @@ TEST_CASE("flux-weighted column sums of the mode-0 operators approach the hemisp
             for (int m = 0; m < M; ++m) {
                 const double mu = q.nodes[static_cast<std::size_t>(m)];
                 // 32 facet nodes: converged to ~1e-10 here (same digits as 64 at sigma = 0.3), and 4x cheaper.
-                const auto above = rd.albedo(mu, 32), below = rd.albedo(-mu, 32);
+                const auto above = rd.hemispherical_totals(mu, 32), below = rd.hemispherical_totals(-mu, 32);
                 const double ref[4] = {above.reflectance, above.transmittance, below.reflectance, below.transmittance};
                 for (int which = 0; which < 4; ++which)
                     err[which] = std::fmax(err[which], std::fabs(column_flux(pick(ops, which), q, m) - ref[which]));
@@ -586,14 +586,14 @@ TEST_CASE("generalized reciprocity holds for the coefficient functions and shows
             double x[modes], y[modes];
             for (int side = 0; side < 3; ++side) {
                 if (side == 0) {
-                    ops.r12(a, b, x);
-                    ops.r12(b, a, y);
+                    ops.r12_coefficients(a, b, x);
+                    ops.r12_coefficients(b, a, y);
                 } else if (side == 1) {
-                    ops.r21(a, b, x);
-                    ops.r21(b, a, y);
+                    ops.r21_coefficients(a, b, x);
+                    ops.r21_coefficients(b, a, y);
                 } else {
-                    ops.t12(a, b, x);
-                    ops.t21(b, a, y);
+                    ops.t12_coefficients(a, b, x);
+                    ops.t21_coefficients(b, a, y);
                     for (int k = 0; k < modes; ++k) {
                         x[k] /= nb * nb;
                         y[k] /= na * na;
@@ -695,7 +695,7 @@ TEST_CASE("renormalized rough operators conserve the hemispherical totals and te
         const InterfaceOperators<double> fixed(rd, q, 2, AzimuthalQuadrature<double>(), renormalize);
         for (int m = 0; m < 12; ++m) {
             const double mu = q.nodes[static_cast<std::size_t>(m)];
-            const auto above = rd.albedo(mu), below = rd.albedo(-mu);
+            const auto above = rd.hemispherical_totals(mu), below = rd.hemispherical_totals(-mu);
             CAPTURE(m);
             CHECK(std::fabs(column_flux(fixed.T12(), q, m) - above.transmittance) <= 1e-14);
             CHECK(std::fabs(column_flux(fixed.R12(), q, m) - above.reflectance) <= 1e-14);

@@ -126,7 +126,7 @@ void check_finite_sweep(int k_max, Real unit_tol) {
             const bool near = !(sigma > Real(100) * RoughDielectric<Real>::smooth_sigma) || sigma >= Real(3);
             if (!(rd.smooth() || near || sigma == Real(1) || sigma == Real(0.01))) continue;
             for (double mu : {1.0, 0.5, 1e-6, 0.0, -1e-6, -0.3, -0.9}) {
-                const auto a = rd.albedo(static_cast<Real>(mu));
+                const auto a = rd.hemispherical_totals(static_cast<Real>(mu));
                 ++checked_albedo;
                 const bool ok = finite_nonnegative(a.reflectance) && finite_nonnegative(a.transmittance) &&
                                 a.reflectance <= 1 && a.transmittance <= 1 &&
@@ -277,18 +277,18 @@ TEST_CASE("smooth limit: albedo, reflectance and transmittance are the Fresnel v
             const SmoothDielectric<double> sd(1.0, eta);
             for (double mu : {1.0, 0.8, 0.5, 0.1, 1e-6, 0.0, -1e-6, -0.2, -0.7, -0.75, -1.0}) {
                 INFO("eta " << eta << " mu " << mu);
-                const auto a = rd.albedo(mu);
+                const auto a = rd.hemispherical_totals(mu);
                 CHECK(a.reflectance == sd.reflectance(mu));
                 CHECK(a.transmittance == 1 - sd.reflectance(mu));
-                CHECK(rd.reflectance(mu) == sd.reflectance(mu));
-                CHECK(rd.transmittance(mu) == sd.transmittance(mu));
+                CHECK(rd.hemispherical_reflectance(mu) == sd.reflectance(mu));
+                CHECK(rd.hemispherical_transmittance(mu) == sd.transmittance(mu));
             }
         }
     // float: the same, in float.
     const RoughDielectric<float> f(0.0f, 1.0f, 1.5f);
     const SmoothDielectric<float> sf(1.0f, 1.5f);
-    CHECK(f.albedo(0.5f).reflectance == sf.reflectance(0.5f));
-    CHECK(f.albedo(-0.9f).transmittance == sf.transmittance(-0.9f));
+    CHECK(f.hemispherical_totals(0.5f).reflectance == sf.reflectance(0.5f));
+    CHECK(f.hemispherical_totals(-0.9f).transmittance == sf.transmittance(-0.9f));
 }
 
 TEST_CASE("every sigma >= 0 gives finite, non-negative values (double: 10^-k, k = 0..320, and extremes)") {
@@ -318,7 +318,7 @@ TEST_CASE("continuity at the threshold: the rough albedo at smooth_sigma is the 
         for (double d : {0.0, 1e-7, -1e-7, 1e-5, -1e-5, 1e-4, -1e-4}) mus.push_back((eta < 1 ? 1 : -1) * (cc + d));
         const double onset = std::sqrt(std::fabs((eta - 1) * (eta + 1)));  // ~ both feature scales near eta = 1
         for (double mu : mus) {
-            const auto r = rough.albedo(mu), s = smooth.albedo(mu);
+            const auto r = rough.hemispherical_totals(mu), s = smooth.hemispherical_totals(mu);
             const double err = std::fmax(std::fabs(r.reflectance - s.reflectance), std::fabs(r.transmittance - s.transmittance));
             const bool denser_side = (mu >= 0) == (eta < 1);  // light arriving from the denser medium
             const bool near_critical = denser_side && std::fabs(std::fabs(mu) - cc) < 1e-3;
@@ -345,7 +345,7 @@ TEST_CASE("continuity at the threshold: the rough albedo at smooth_sigma is the 
     // float: the albedo is computed in double; the smallest non-smooth float sigma agrees likewise.
     const RoughDielectric<float> rf(RoughDielectric<float>::smooth_sigma, 1.0f, 1.5f);
     const SmoothDielectric<float> sf(1.0f, 1.5f);
-    CHECK(rf.albedo(0.6f).reflectance == doctest::Approx(sf.reflectance(0.6f)).epsilon(1e-6));
+    CHECK(rf.hemispherical_totals(0.6f).reflectance == doctest::Approx(sf.reflectance(0.6f)).epsilon(1e-6));
 }
 
 TEST_CASE("Beckmann functions never give NaN for any finite sigma > 0 (D may overflow to inf for tiny sigma)") {
@@ -431,7 +431,7 @@ TEST_CASE("a sigma = 0 RoughDielectric boundary is solved as the SmoothDielectri
             CHECK(rough_layer.btdf(wi, {wo.x, wo.y, -wo.z}) == smooth_layer.btdf(wi, {wo.x, wo.y, -wo.z}));
         }
         for (double mu : {1.0, 0.5, 0.1}) {
-            CHECK(rough_layer.albedo(mu).total() == smooth_layer.albedo(mu).total());
+            CHECK(rough_layer.reflectance(mu).total() == smooth_layer.reflectance(mu).total());
             CHECK(rough_layer.transmittance(mu) == smooth_layer.transmittance(mu));
             CHECK(rough_layer.direct_transmittance(mu) == smooth_layer.direct_transmittance(mu));
         }

@@ -126,7 +126,7 @@ void check_surface(const LayeredSurface<double>& s, const std::string& label, do
 
     // Cosines in (0, 1]: every component in [0, 1], the direct parts inside their totals, energy not created.
     for (double mu : {denormal, 1e-300, 1e-9, 0.3, 0.7, 1.0}) {
-        const auto a = s.albedo(mu);
+        const auto a = s.reflectance(mu);
         const double t = s.transmittance(mu), dt = s.direct_transmittance(mu), dr = s.direct_reflectance(mu);
         const std::string at = " at mu = " + fmt(mu) + ": R = " + fmt(a.surface) + " + " + fmt(a.subsurface) +
                                ", T = " + fmt(t) + ", direct T = " + fmt(dt) + ", direct R = " + fmt(dr);
@@ -138,7 +138,7 @@ void check_surface(const LayeredSurface<double>& s, const std::string& label, do
     }
     // Cosines outside (0, 1]: documented 0.
     for (double mu : {0.0, -0.0, -denormal, -0.5, -1.0, std::nextafter(1.0, 2.0), 1 + 1e-12, 2.0, inf, -inf, not_a_number}) {
-        const auto a = s.albedo(mu);
+        const auto a = s.reflectance(mu);
         f.expect(a.surface == 0 && a.subsurface == 0 && s.transmittance(mu) == 0 && s.direct_transmittance(mu) == 0 &&
                      s.direct_reflectance(mu) == 0,
                  "not 0 outside (0, 1] at mu = " + fmt(mu));
@@ -280,7 +280,7 @@ TEST_CASE("optical thickness 0, 1e-300, 1e-12, huge and +infinity are accepted; 
             if (faces.rough() && albedo == 0) continue;
             auto at = [&](double tau) {
                 const auto l = solve_layer(Slab<double>(albedo, 0.5, tau), faces.top, faces.bottom, with_ordinates(4));
-                return std::vector<double>{l.albedo(0.6).total(), l.transmittance(0.6), l.albedo(0.2).total(),
+                return std::vector<double>{l.reflectance(0.6).total(), l.transmittance(0.6), l.reflectance(0.2).total(),
                                            l.transmittance(0.2)};
             };
             const std::vector<double> zero = at(0.0), thin = at(1e-12), thick = at(1e300), semi = at(inf);
@@ -358,7 +358,7 @@ TEST_CASE("boundaries: roughness from 1e-300 to 1e10, index ratios 1 and 1 +- 1e
         check_surface(rough0, "rough | rough, sigma 0");
         // ... and it is exactly the smooth layer.
         for (double mu : {1.0, 0.5, 0.1}) {
-            CHECK(rough0.albedo(mu).total() == doctest::Approx(smooth.albedo(mu).total()).epsilon(1e-14));
+            CHECK(rough0.reflectance(mu).total() == doctest::Approx(smooth.reflectance(mu).total()).epsilon(1e-14));
             CHECK(rough0.transmittance(mu) == doctest::Approx(smooth.transmittance(mu)).epsilon(1e-14));
         }
     }
@@ -435,7 +435,7 @@ TEST_CASE("requests: incidences 1, 1e-300 and denormal are accepted and cached; 
         check_surface(cached, std::string(faces.name) + ", cached incidences");
         for (double mu : r.incidence) {
             INFO(std::string(faces.name) << ", mu = " << mu);
-            CHECK(cached.albedo(mu).total() == doctest::Approx(plain.albedo(mu).total()).epsilon(1e-14));
+            CHECK(cached.reflectance(mu).total() == doctest::Approx(plain.reflectance(mu).total()).epsilon(1e-14));
             CHECK(cached.transmittance(mu) == doctest::Approx(plain.transmittance(mu)).epsilon(1e-14));
             const Vec3<double> wi{std::sqrt((1 - mu) * (1 + mu)), 0, mu}, wo = direction(0.5, 1.0);
             CHECK(cached.brdf(wi, wo) == doctest::Approx(plain.brdf(wi, wo)).epsilon(1e-14));
@@ -466,7 +466,7 @@ TEST_CASE("requests: incidences 1, 1e-300 and denormal are accepted and cached; 
             const Vec3<double> wi = direction(0.8, 0.3), wo = direction(0.5, 1.0);
             if (!includes(o, LayerOutput::subsurface_reflection)) {
                 CHECK(layer.subsurface_brdf(wi, wo) == 0);
-                CHECK(layer.albedo(0.5).subsurface == 0);
+                CHECK(layer.reflectance(0.5).subsurface == 0);
             }
             if (!includes(o, LayerOutput::transmission)) {
                 CHECK(layer.btdf(wi, flip(wo)) == 0);
@@ -529,7 +529,7 @@ TEST_CASE("solve_stack: extreme slabs and every kind of interior boundary; incon
                                                        {SmoothDielectric<double>(1.4, 1.33)}, smooth_bottom, with_ordinates(m));
                 for (double mu : {0.05, 0.3, 0.7, 1.0}) {
                     INFO("M = " << m << ", tau " << tau << (rough_top ? ", rough top" : ", smooth top") << ", mu " << mu);
-                    const double r = stack.albedo(mu).total(), t = stack.transmittance(mu);
+                    const double r = stack.reflectance(mu).total(), t = stack.transmittance(mu);
                     CHECK(r >= 0);
                     CHECK(t >= 0);
                     CHECK(r + t <= 1 + slack);

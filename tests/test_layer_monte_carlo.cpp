@@ -117,7 +117,7 @@ void compare_fluxes(const char* name, const mc_layer::Layer& layer, Allowance al
         for (std::size_t j = 0; j < solved.size(); ++j) {
             const int m = ms[j];
             const double allow = m == 16 ? allowance.m16 : allowance.m32;
-            const auto a = solved[j].albedo(mu0);
+            const auto a = solved[j].reflectance(mu0);
             const double tr = solved[j].transmittance(mu0);
             const double mc_s = t.fraction(t.surface), mc_r = t.fraction(t.subsurface), mc_t = t.fraction(t.transmitted);
             const double se_s = t.std_error(t.surface), se_r = t.std_error(t.subsurface), se_t = t.std_error(t.transmitted);
@@ -180,7 +180,7 @@ TEST_CASE("the Monte Carlo's facet sampling reproduces a rough interface's albed
         const mc_layer::Layer layer{MB::gaussian(0.3, sides.first, sides.second), MB::index_matched(sides.second), 0.5,
                                     0.0, 0.0};
         for (double mu : {1.0, 0.9, 0.7, 0.3}) {
-            const auto exact = interface.albedo(mu, 24);
+            const auto exact = interface.hemispherical_totals(mu, 24);
             const mc_layer::Tally t = mc_layer::trace(layer, mu, n, seed++);
             INFO("n1 = " << sides.first << ", n2 = " << sides.second << ", mu = " << mu);
             CHECK(std::fabs(t.fraction(t.surface) - exact.reflectance) <= n_sigma * t.std_error(t.surface));

@@ -59,7 +59,7 @@ enum class DiffuseFresnel {
 /// The boundary of a semi-infinite diffusing medium: its relative index eta = n_medium / n_outside and the
 /// dipole's boundary coefficient A = (1 + F_dr(eta)) / (1 - F_dr(eta)). Build it once (the exact F_dr is
 /// an integral); the noexcept overloads below take it.
-template <class Real>
+template <class Real = double>
 struct DipoleBoundary {
     Real eta = 1;
     Real A = 1;
@@ -231,7 +231,7 @@ Real alpha_prime_from_reflectance(Real Rd, Real eta, DiffuseFresnel model = Diff
 /// uniform in R_d would give 6.8e-11.
 /// max_error() returns the error measured at construction at every interval's midpoint, where the Hermite
 /// error peaks. In float the error is that of float rounding (<= 1e-6, measured 2.3e-7).
-template <class Real>
+template <class Real = double>
 class AlphaPrimeTable {
 public:
     /// Throws std::invalid_argument for an invalid eta or size < 2.
@@ -286,7 +286,7 @@ private:
 };
 
 /// The dipole diffusion model of a semi-infinite homogeneous medium with a smooth boundary.
-template <class Real>
+template <class Real = double>
 class Dipole {
 public:
     /// From the absorption and reduced scattering coefficients sigma_a, sigma_s' >= 0 (1/length, finite,

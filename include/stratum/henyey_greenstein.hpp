@@ -23,13 +23,14 @@
 //    phase_fourier_coefficient(chi, mu', mu, k) and phase_fourier_matrices(chi, mu, modes);
 //  * for plain (untruncated) Henyey-Greenstein, a closed form in complete elliptic integrals with a
 //    recurrence in k -- HenyeyGreenstein::fourier_coefficients and phase_fourier_matrices(hg, mu, modes).
-// Measured (double, against mpmath quadrature of the azimuthal integral, coefficients >= 1e-8 p_0):
-//   g       series (N = ln(1e-17)/ln g: 263, 2749, 39100)        closed form
-//   0.9     rel 8e-8,  abs 6e-15 p_0,  254 us per pair (48 modes)  rel 3e-15, abs 7e-16 p_0, 1.1 us
-//   0.99    rel 6e-5,  abs 7e-13 p_0,  2.7 ms                      rel 1e-14, abs 8e-15 p_0, 1.1 us
-//   0.999   rel 3e-3,  abs 5e-11 p_0,  27 ms                       rel 4e-15, abs 3e-15 p_0, 1.1 us
+// Accuracy (double, against mpmath quadrature of the azimuthal integral, coefficients >= 1e-8 p_0):
+//   g       series (N = ln(1e-17)/ln g: 263, 2749, 39100 terms)   closed form
+//   0.9     rel 8e-8,  abs 6e-15 p_0                              rel 3e-15, abs 7e-16 p_0
+//   0.99    rel 6e-5,  abs 7e-13 p_0                              rel 1e-14, abs 8e-15 p_0
+//   0.999   rel 3e-3,  abs 5e-11 p_0                              rel 4e-15, abs 3e-15 p_0
 // The series' error is absolute, ~eps (1 + g)/(1 - g)^2 (its terms cancel), so small coefficients
-// lose their relative accuracy; the closed form keeps it and costs O(modes) whatever g.
+// lose their relative accuracy; the closed form keeps it and costs O(modes) whatever g, while the series
+// costs O(N modes) (BM_hg_fourier_pair_series / _closed_form; figures in README and docs/accuracy.md).
 // Without delta-M, prefer the closed form; with delta-M (truncated moments) the series is the route.
 //
 // Also here: sampling by exact CDF inversion (stable for g -> 0 and |g| -> 1), Legendre moments,
@@ -52,7 +53,7 @@
 namespace stratum {
 
 /// A sampled scattering direction with its probability density (per steradian).
-template <class Real>
+template <class Real = double>
 struct PhaseSample {
     Vec3<Real> direction;  ///< unit vector, the new propagation direction
     Real cos_theta;        ///< cosine between the old and the new propagation direction
@@ -60,7 +61,7 @@ struct PhaseSample {
 };
 
 /// The Henyey-Greenstein phase function with asymmetry parameter g in (-1, 1).
-template <class Real>
+template <class Real = double>
 class HenyeyGreenstein {
 public:
     /// Throws std::invalid_argument unless -1 < g < 1 (NaN rejected).
@@ -267,7 +268,7 @@ Real phase_fourier_coefficient(const std::vector<Real>& chi, Real mu_prime, Real
 ///   same_k(k)[n * M + m]     = p_k( mu_m, mu_n)   (row n, column m, row-major),
 ///   opposite_k(k)[n * M + m] = p_k(-mu_m, mu_n),
 /// with p_k as above (4 pi normalization). Both are symmetric in (n, m).
-template <class Real>
+template <class Real = double>
 struct PhaseFourierMatrices {
     int modes = 0;  ///< K
     int size = 0;   ///< M
@@ -406,7 +407,7 @@ PhaseFourierMatrices<Real> phase_fourier_matrices(const HenyeyGreenstein<Real>& 
 }
 
 /// Delta-M scaled layer parameters (Wiscombe 1977) for a Henyey-Greenstein medium.
-template <class Real>
+template <class Real = double>
 struct DeltaMScaled {
     Real albedo;             ///< Omega' = (1 - f) Omega / (1 - f Omega)
     Real optical_thickness;  ///< tau' = (1 - f Omega) tau

@@ -38,7 +38,7 @@
 //
 // Index matching (eta_above == eta_below exactly): nothing is reflected and the transmission is the identity,
 // a delta in the direction -wi. brdf and btdf return 0 (a delta cannot be evaluated), sample returns the
-// straight-through direction flagged as delta, albedo returns {0, 1}. For eta_above != eta_below the BTDF is a
+// straight-through direction flagged as delta, hemispherical_totals returns {0, 1}. For eta_above != eta_below the BTDF is a
 // proper function however close the indices are; its lobe narrows like |eta - 1| sigma and its peak grows
 // like 1/(eta - 1)^2 (finite; 0 is returned only where the Jacobian denominator is exactly 0). Note that with
 // shadowing the energy of that lobe tends, as eta -> 1, to E[G2 / G1(i)] < 1 (the single-scattering model
@@ -49,7 +49,7 @@
 // Smooth limit (sigma < RoughDielectric::smooth_sigma = 1e-7, sigma = 0 included; see there for the choice):
 // the interface is the smooth dielectric (SmoothDielectric). As for index matching, brdf, btdf and pdf return
 // 0, sample returns the mirror or Snell direction as a delta sample chosen with probability F or 1 - F, and
-// albedo returns {F, 1 - F}. Every value is finite for every sigma >= 0 (tests/test_interface_smooth_limit.cpp).
+// hemispherical_totals returns {F, 1 - F}. Every value is finite for every sigma >= 0 (tests/test_interface_smooth_limit.cpp).
 //
 // Energy (tests/test_interface_energy.cpp): with masking_only, R + T equals 1 minus the facet-scattered light
 // sent into the wrong hemisphere, as measured by a facet-level Monte Carlo (e.g. 0.63% at sigma = 0.3,
@@ -58,8 +58,8 @@
 // and from below). Height-correlated transmission shadows more than separable (Chebyshev's inequality:
 // B(1 + a, 1 + b) <= 1 / ((1 + a)(1 + b))), reflection less.
 //
-// Cost (double, one core, tests' machine): eval ~65 ns, brdf ~100 ns, sample ~0.5-1.5 us (two CDF inversions
-// by Newton), albedo 0.1 - 1.3 ms (see RoughDielectric::albedo).
+// Cost: eval, brdf, btdf and pdf are a few dozen flops and one exp/erfc each; sample adds two CDF inversions
+// by Newton; hemispherical_totals is a 2-D integral (see there). Measured figures: README and docs/accuracy.md.
 #pragma once
 
 #include <algorithm>
@@ -96,7 +96,7 @@ enum class Shadowing { height_correlated, separable, masking_only };
 /// viewer's direction as wi (reciprocity) must, for transmission (rough or smooth), multiply the weight by
 /// (n_viewer / n_light)^2 (generalized reciprocity btdf(wi, wo) / eta_o^2 = btdf(wo, wi) / eta_i^2), the
 /// radiance factor of SmoothDielectric::radiance_transmittance.
-template <class Real>
+template <class Real = double>
 struct BsdfSample {
     Vec3<Real> wo{};
     Real value = 0;
@@ -106,9 +106,9 @@ struct BsdfSample {
     STRATUM_HOST_DEVICE bool valid() const noexcept { return pdf > 0; }
 };
 
-/// Hemispherical reflectance and transmittance (power fractions) for one incident direction.
-template <class Real>
-struct Albedo {
+/// Directional-hemispherical reflectance and transmittance (power fractions) for one incident direction.
+template <class Real = double>
+struct HemisphericalTotals {
     Real reflectance = 0;
     Real transmittance = 0;
 };
@@ -159,7 +159,7 @@ STRATUM_HOST_DEVICE W smith_g2_over_g1(W li, W lo, Shadowing form, bool transmis
 /// [0, 6], built once (first use) from the exact derivatives phi' = -erfc(a)/2, phi^(k+2) = (-1)^k H_k(a)
 /// e^{-a^2}/sqrt(pi) (H_k Hermite polynomials). Degree 12 (16 for wider types) leaves a truncation error below
 /// 3e-17 (5e-23), checked with mpmath; beyond a = 6, Lambda < 4e-19 and is returned as 0. Used where Lambda
-/// is needed many times (the albedo integral): a table lookup and a short Horner loop instead of erfc and exp.
+/// is needed many times (the hemispherical_totals integral): a table lookup and a short Horner loop instead of erfc and exp.
 template <class W>
 class SmithLambdaTable {
 public:
@@ -299,7 +299,7 @@ STRATUM_HOST_DEVICE void hurwitz_zeta(W x, int K, W* out) noexcept {
 /// The shadowing factors use SmithLambdaTable, and the height-correlated transmission factor
 /// (1 + li) B(1 + li, 1 + lo) its Taylor series in lo (lo < 1/16) or log_gamma_ratio.
 template <class W>
-Albedo<W> rough_albedo(W sigma, W mu, W eta, Shadowing form, int n) {
+HemisphericalTotals<W> rough_hemispherical_totals(W sigma, W mu, W eta, Shadowing form, int n) {
     const Beckmann<W> dist(sigma);
     const SmithLambdaTable<W>& lambda_table = SmithLambdaTable<W>::get();
     const HalfRuleTable<W>& rules = HalfRuleTable<W>::get();
@@ -680,7 +680,7 @@ Albedo<W> rough_albedo(W sigma, W mu, W eta, Shadowing form, int n) {
 /// Rough dielectric interface: a Gaussian microsurface of RMS slope sigma between media of indices
 /// eta_above (z > 0) and eta_below. All evaluation functions are noexcept and allocation-free.
 /// sigma = 0 (and any sigma below smooth_sigma) is the smooth limit: see smooth().
-template <class Real>
+template <class Real = double>
 class RoughDielectric {
 public:
     /// Below this RMS slope the interface is treated as exactly smooth (smooth()). The same value for every
@@ -700,7 +700,7 @@ public:
     /// at cosines 1e-3 or more from grazing and from a critical angle; within 1e-3 of a critical cosine the
     /// square-root onset of F is smeared by O(sqrt(sigma)) (1.1e-3 at n 1 | 1.5, 6e-3 at 1 | 1.0001).
     static constexpr Real smooth_sigma = Real(1) / Real(10000000);  // 1e-7 correctly rounded in every type
-    /// The largest RMS slope accepted, 1e10 (facets within 1e-10 rad of vertical): albedo() keeps its 1e-8
+    /// The largest RMS slope accepted, 1e10 (facets within 1e-10 rad of vertical): hemispherical_totals() keeps its 1e-8
     /// accuracy up to it (measured 1e-11 at 1e10), not beyond (3e-6 at sigma = 1e140, found by fuzz_pointwise).
     static constexpr Real max_sigma = Real(1e10);
 
@@ -725,7 +725,7 @@ public:
     STRATUM_HOST_DEVICE bool index_matched() const noexcept { return eta_above_ == eta_below_; }
     /// True when sigma < smooth_sigma (sigma = 0 included): the interface is the smooth dielectric, a specular
     /// reflector and refractor. brdf, btdf, eval and pdf return 0 (a delta cannot be evaluated); sample returns
-    /// the mirror or Snell direction as a delta sample (see BsdfSample); albedo returns the Fresnel values
+    /// the mirror or Snell direction as a delta sample (see BsdfSample); hemispherical_totals returns the Fresnel values
     /// {F, 1 - F}, exactly SmoothDielectric's. Index matching takes precedence (identity transmission).
     STRATUM_HOST_DEVICE bool smooth() const noexcept { return sigma_ < smooth_sigma; }
 
@@ -884,7 +884,7 @@ public:
     /// Hemispherical reflectance and transmittance for light arriving from a direction with cosine mu_i
     /// (mu_i > 0: from above, wi.z = mu_i; mu_i < 0: from below): R = int brdf |wo.z| dwo over wi's
     /// hemisphere, T = int btdf |wo.z| dwo over the other one. Computed over facet slopes, where no Jacobian
-    /// appears (so it stays smooth as eta -> 1); see detail::rough_albedo for the method. `nodes` is the
+    /// appears (so it stays smooth as eta -> 1); see detail::rough_hemispherical_totals for the method. `nodes` is the
     /// Gauss-Legendre count per x panel (3/4 of it per y panel). Accuracy, measured against the previous
     /// implementation at 56 nodes per panel (tests/test_interface_albedo.cpp and a 1944-case grid: sigma in
     /// [1e-4, 2], eta_t / eta_i in {1/2.5, 1/1.4, 1/1.0001, 1 -+ 1e-9, 1.0001, 1.1, 1.4, 2.5}, |mu_i| in [0, 1],
@@ -895,10 +895,10 @@ public:
     /// Values of `nodes` above 32 are treated as 32. Height-correlated transmission at mu_i = 0 exactly
     /// (Lambda(wi) = inf) is 0, the limit (1 + li)^{-lo} -> 0 for every lo > 0. Smooth interface (smooth()):
     /// exactly {F, 1 - F}, F = fresnel_dielectric(|mu_i|, eta_t / eta_i) (SmoothDielectric's values).
-    /// Cost (double, one core, 16 nodes; BM_interface_albedo): 0.1 - 0.25 ms for sigma <= 0.1, 0.35 - 0.5 ms at
-    /// sigma = 0.3, 0.9 - 1.3 ms for sigma in [1, 2] (3 000 - 20 000 facet evaluations; more for large sigma and
-    /// for eta < 1, where more curves cross). Throws std::invalid_argument for nodes < 2.
-    Albedo<Real> albedo(Real mu_i, int nodes = 16) const {
+    /// Cost: a two-dimensional integral of 3 000 - 20 000 facet evaluations (more for large sigma and for
+    /// eta < 1, where more curves cross): microseconds to a millisecond (BM_interface_hemispherical_totals;
+    /// figures in docs/accuracy.md). Throws std::invalid_argument for nodes < 2.
+    HemisphericalTotals<Real> hemispherical_totals(Real mu_i, int nodes = 16) const {
         detail::require_count("nodes", nodes, 2);
         nodes = nodes < 32 ? nodes : 32;
         using W = detail::wide_t<Real>;
@@ -911,14 +911,14 @@ public:
         const bool below = mu_i < 0;
         const W eta_i = below ? eta_below_ : eta_above_, eta_t = below ? eta_above_ : eta_below_;
         const W m = std::fmin(std::fabs(static_cast<W>(mu_i)), W(1));
-        const auto a = detail::rough_albedo<W>(distribution_.sigma(), m, eta_t / eta_i, shadowing_, nodes);
+        const auto a = detail::rough_hemispherical_totals<W>(distribution_.sigma(), m, eta_t / eta_i, shadowing_, nodes);
         return {static_cast<Real>(a.reflectance), static_cast<Real>(a.transmittance)};
     }
 
-    /// albedo(mu_i).reflectance
-    Real reflectance(Real mu_i) const { return albedo(mu_i).reflectance; }
-    /// albedo(mu_i).transmittance
-    Real transmittance(Real mu_i) const { return albedo(mu_i).transmittance; }
+    /// hemispherical_totals(mu_i).reflectance (the same integral: cache the pair where both are needed)
+    Real hemispherical_reflectance(Real mu_i) const { return hemispherical_totals(mu_i).reflectance; }
+    /// hemispherical_totals(mu_i).transmittance
+    Real hemispherical_transmittance(Real mu_i) const { return hemispherical_totals(mu_i).transmittance; }
 
 private:
     // The smooth interface's delta sample for wi (wi.z != 0) and eta = eta_t / eta_i: the mirror direction with
@@ -963,7 +963,7 @@ private:
 };
 
 /// Result of SmoothDielectric::scatter for one incident direction wi.
-template <class Real>
+template <class Real = double>
 struct SpecularScattering {
     Vec3<Real> reflected{};          ///< mirror direction (-wi.x, -wi.y, wi.z), on wi's side
     Vec3<Real> transmitted{};        ///< Snell direction on the other side, pointing away; zero vector under TIR
@@ -976,7 +976,7 @@ struct SpecularScattering {
 /// Smooth dielectric interface: the sigma -> 0 limit of RoughDielectric, as an exact specular interface
 /// (no delta is ever evaluated). mu_i is the cosine of wi (towards the light, pointing away from the
 /// surface): mu_i > 0 means light arriving from above. Index matching gives F = 0 and identity transmission.
-template <class Real>
+template <class Real = double>
 class SmoothDielectric {
 public:
     /// eta_above, eta_below: refractive indices in [1e-4, 1e4]; throws std::invalid_argument otherwise.

@@ -46,6 +46,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "interface.hpp"
 #include "quadrature.hpp"
@@ -184,11 +185,6 @@ private:
 
 namespace detail {
 
-template <class T>
-struct identity {
-    using type = T;
-};
-
 // Calls a kernel with (mu_in, mu_out, cos_phi, sin_phi) when it accepts four arguments, else with
 // (mu_in, mu_out, cos_phi). The sine lets a kernel form 1 - cos(phi) = sin^2 / (1 + cos) without
 // cancellation (needed for lobes narrower than ~1e-4 rad).
@@ -210,8 +206,8 @@ Real call_kernel(const Kernel& rho, Real mu_in, Real mu_out, Real c, Real s) {
 /// rotation recurrence (error ~ k ulp).
 template <class Real, class Kernel>
 void azimuthal_coefficients(const Kernel& rho, Real mu_in, Real mu_out,
-                            const AzimuthalFeatures<typename detail::identity<Real>::type>& features,
-                            int modes, Real* out, const AzimuthalQuadrature<typename detail::identity<Real>::type>& rule) {
+                            const AzimuthalFeatures<detail::non_deduced_t<Real>>& features,
+                            int modes, Real* out, const AzimuthalQuadrature<detail::non_deduced_t<Real>>& rule) {
     for (int k = 0; k < modes; ++k) out[k] = Real(0);
     rule.for_each_node(features, modes, [&](Real phi, Real weight) {
         const Real c = std::cos(phi), s = std::sin(phi);
@@ -350,7 +346,7 @@ FourierOperators<Real> fourier_operators(const Kernel& rho, const Features& feat
 // (sigma = 0.3, n 1 | 1.4: max error 3e-4 (T12) and 2e-3 (R21, TIR onset) at M = 24, 8e-6 and 4e-4 at
 // M = 64); for narrow lobes (sigma = 0.02) the matrices are pointwise right but the Gauss sum over mu_out
 // misses or over-counts the lobe (errors of order 1 at M = 24). The coefficient functions at arbitrary
-// angles stay accurate for any sigma (they integrate to RoughDielectric::albedo to ~1e-11 at sigma = 0.02).
+// angles stay accurate for any sigma (they integrate to RoughDielectric::hemispherical_totals to ~1e-11 at sigma = 0.02).
 // A nearly index-matched rough interface has a BTDF lobe narrower than the ordinate spacing: at sigma = 0.3,
 // M = 24 the T12 column fluxes are off by 1.7e-2 at n 1 | 1.2, 0.37 at 1.1, 10 at 1.01 (the coefficient
 // functions stay accurate). Exact matching is detected and represented as the identity; near it, use
@@ -361,15 +357,18 @@ enum class Incidence { from_above, from_below };
 
 /// Optional energy correction of the rough operators (see InterfaceOperators).
 enum class Renormalization {
-    none,                 ///< DEFAULT: the operators as defined (pointwise in mu_out)
-    hemispherical_totals  ///< each column scaled to the interface's hemispherical R or T for its ordinate
+    none,                 ///< the operators as defined (pointwise in mu_out); InterfaceOperators' default
+    hemispherical_totals  ///< each column scaled to the interface's hemispherical R or T for its ordinate;
+                          ///< LayerOptions' default (the layer solver's)
 };
 
 /// How a smooth interface's Snell-mapped transmission is put on the ordinates (see the comment above).
 enum class SpecularTransmission {
-    pointwise,        ///< DEFAULT: each outgoing ordinate interpolates the incident field at its Snell pre-image
+    pointwise,        ///< each outgoing ordinate interpolates the incident field at its Snell pre-image;
+                      ///< InterfaceOperators' default
     flux_conserving,  ///< each incident ordinate's beam split over the ordinates around its Snell image
-    automatic         ///< flux_conserving into the denser medium, pointwise out of it
+    automatic         ///< flux_conserving into the denser medium, pointwise out of it; LayerOptions' default
+                      ///< (whose interior faces of a stack are always flux_conserving, see solve_stack)
 };
 
 namespace detail {
@@ -464,14 +463,14 @@ public:
     /// Shadowing::masking_only; index matching: identity / zero, exactly).
     /// Cost ~2 M^2 x (phi samples) x (K + BSDF evaluation).
     /// renormalization = hemispherical_totals scales every column (all modes alike) so that its flux equals
-    /// RoughDielectric::albedo at that ordinate, blended with the specular column carrying the total to the
+    /// RoughDielectric::hemispherical_totals at that ordinate, blended with the specular column carrying the total to the
     /// mirror/Snell image (split linearly between the two ordinates around it; the same in every mode: a
     /// delta in phi) by the share 1 - min(r, 1/r), r = captured flux / total: a resolved lobe (r ~ 1) is kept,
     /// one that passes between the ordinates (r -> 0 or large) becomes specular, continuously in every
     /// parameter. Energy then holds per incident ordinate for any lobe width, and as
     /// eta -> 1 or sigma -> 0 the operators tend to the specular ones (T -> identity at matching). The
     /// price: reciprocity of the matrices is lost (to the size of the correction), the lobe shape in mu
-    /// is still only sampled, and 2M albedo calls (~1-3 ms each) are added.
+    /// is still only sampled, and 2M hemispherical_totals integrals are added.
     /// Throws std::invalid_argument for modes < 1 or an empty ordinate set.
     InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
                        const AzimuthalQuadrature<Real>& rule = AzimuthalQuadrature<Real>(),
@@ -644,19 +643,20 @@ public:
     const FourierOperators<Real>& R21() const noexcept { return r21_; }
     const FourierOperators<Real>& T21() const noexcept { return t21_; }
 
-    /// The exact hemispherical totals RoughDielectric::albedo at each ordinate for light arriving from the
+    /// The exact hemispherical totals RoughDielectric::hemispherical_totals at each ordinate for light arriving from the
     /// given side (computed by Renormalization::hemispherical_totals; empty otherwise).
-    const std::vector<Albedo<Real>>& ordinate_albedo(Incidence side) const noexcept {
-        return side == Incidence::from_above ? albedo_above_ : albedo_below_;
+    const std::vector<HemisphericalTotals<Real>>& ordinate_totals(Incidence side) const noexcept {
+        return side == Incidence::from_above ? totals_above_ : totals_below_;
     }
 
     /// I_k(mu_in, mu_out), k = 0..modes()-1, written to out[0..modes()-1], at any cosines in [0, 1]
     /// (absolute values; the sides are given by the function): reflection or transmission of light
-    /// arriving from above (r12, t12) or below (r21, t21). Zeros for a specular interface.
-    void r12(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_above, false, mu_in, mu_out, out); }
-    void t12(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_above, true, mu_in, mu_out, out); }
-    void r21(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_below, false, mu_in, mu_out, out); }
-    void t21(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_below, true, mu_in, mu_out, out); }
+    /// arriving from above (r12_, t12_coefficients) or below (r21_, t21_coefficients): the azimuthal Fourier
+    /// coefficients at true angles, where R12() etc. are the matrices on the ordinates. Zeros for a specular interface.
+    void r12_coefficients(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_above, false, mu_in, mu_out, out); }
+    void t12_coefficients(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_above, true, mu_in, mu_out, out); }
+    void r21_coefficients(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_below, false, mu_in, mu_out, out); }
+    void t21_coefficients(Real mu_in, Real mu_out, Real* out) const noexcept { coefficients(Incidence::from_below, true, mu_in, mu_out, out); }
 
     /// The same for a chosen side and lobe.
     void coefficients(Incidence side, bool transmission, Real mu_in, Real mu_out, Real* out) const noexcept {
@@ -670,7 +670,7 @@ public:
 
 private:
     // Scales column m of each operator (all modes alike) so that its flux-weighted sum equals the
-    // interface's hemispherical total for incidence mu_m (RoughDielectric::albedo), blended continuously
+    // interface's hemispherical total for incidence mu_m (RoughDielectric::hemispherical_totals), blended continuously
     // with the specular column (see the constructor's comment) where the ordinates miss the lobe.
     void renormalize(const Quadrature<Real>& ordinates) {
         const int m_count = static_cast<int>(ordinates.size());
@@ -679,8 +679,8 @@ private:
         };
         Real split[2];
         std::vector<Real> shape;
-        albedo_above_.clear();
-        albedo_below_.clear();
+        totals_above_.clear();
+        totals_below_.clear();
         for (int side = 0; side < 2; ++side) {
             FourierOperators<Real>& r = side == 0 ? r12_ : r21_;
             FourierOperators<Real>& t = side == 0 ? t12_ : t21_;
@@ -688,8 +688,8 @@ private:
             const Real eta_o = side == 0 ? rough_.eta_below() : rough_.eta_above();
             for (int m = 0; m < m_count; ++m) {
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
-                const Albedo<Real> target = rough_.albedo(side == 0 ? mu : -mu);
-                (side == 0 ? albedo_above_ : albedo_below_).push_back(target);
+                const HemisphericalTotals<Real> target = rough_.hemispherical_totals(side == 0 ? mu : -mu);
+                (side == 0 ? totals_above_ : totals_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {
                     FourierOperators<Real>& op = lobe == 0 ? r : t;
                     const Real total = lobe == 0 ? target.reflectance : target.transmittance;
@@ -741,7 +741,7 @@ private:
     bool index_matched_;
     bool specular_;
     FourierOperators<Real> r12_, t12_, r21_, t21_;
-    std::vector<Albedo<Real>> albedo_above_, albedo_below_;  // per ordinate, when renormalized
+    std::vector<HemisphericalTotals<Real>> totals_above_, totals_below_;  // per ordinate, when renormalized
 };
 
 }  // namespace stratum

@@ -38,7 +38,7 @@
 // tests/test_layer_monte_carlo.cpp measure it (up to 0.01 near a critical angle). The exact treatment,
 // DISORT's beam source with intensities at user angles, is not done yet.
 //
-// Units: BRDF/BTDF per steradian (cosine not included), albedo and transmittance as fractions of the
+// Units: BRDF/BTDF per steradian (cosine not included), reflectance and transmittance as fractions of the
 // incident flux, ambient as reflected radiance per unit incident sky radiance.
 #pragma once
 
@@ -52,6 +52,7 @@
 
 #include "adding.hpp"
 #include "detail/linalg.hpp"
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "henyey_greenstein.hpp"
 #include "interface.hpp"
@@ -95,7 +96,7 @@ struct LayerOptions {
 template <class Real = double>
 struct LayerRequest {
     LayerOutput outputs = LayerOutput::all;
-    /// Incidence cosines mu_0 in (0, 1] at which brdf/btdf/albedo will be evaluated; their internal fields
+    /// Incidence cosines mu_0 in (0, 1] at which brdf/btdf/reflectance/transmittance will be evaluated; their internal fields
     /// are precomputed, so evaluation there skips the top interface's coefficients and the per-mode solve.
     /// Other incidences still work (computed on the fly).
     std::vector<Real> incidence;
@@ -127,10 +128,15 @@ public:
         return rough() ? InterfaceOperators<Real>(*rough_, q, modes, AzimuthalQuadrature<Real>(), o.renormalization)
                        : InterfaceOperators<Real>(smooth_, q, modes, o.specular_transmission);
     }
-    /// Directional-hemispherical transmittance for light arriving with cosine mu (> 0 from above).
-    Real transmittance(Real mu) const { return rough() ? rough_->transmittance(mu) : smooth_.transmittance(mu); }
-    /// Directional-hemispherical reflectance for light arriving with cosine mu (> 0 from above).
-    Real reflectance(Real mu) const { return rough() ? rough_->reflectance(mu) : smooth_.reflectance(mu); }
+    /// Directional-hemispherical transmittance for light arriving with cosine mu (> 0 from above): an
+    /// integral for a rough face, the Fresnel value for a smooth one.
+    Real hemispherical_transmittance(Real mu) const {
+        return rough() ? rough_->hemispherical_transmittance(mu) : smooth_.transmittance(mu);
+    }
+    /// Directional-hemispherical reflectance for light arriving with cosine mu (> 0 from above), likewise.
+    Real hemispherical_reflectance(Real mu) const {
+        return rough() ? rough_->hemispherical_reflectance(mu) : smooth_.reflectance(mu);
+    }
 
 private:
     std::optional<RoughDielectric<Real>> rough_;
@@ -140,15 +146,17 @@ private:
 template <class Real>
 class LayeredSurface;
 
-namespace detail {
+/// Solves a stack: `top` boundary, then slabs[0], interior[0], slabs[1], ..., slabs[N-1], then `bottom`
+/// (interior.size() == slabs.size() - 1). Adjacent indices must agree (top.eta_below() ==
+/// interior[0].eta_above(), ...). Throws std::invalid_argument for inconsistent input or bad options.
+/// The boundaries are not deduced, so a RoughDielectric or SmoothDielectric converts to a Boundary.
+template <class Real>
+LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& top, const std::vector<Slab<Real>>& slabs,
+                                 const std::vector<Boundary<Real>>& interior,
+                                 const detail::non_deduced_t<Boundary<Real>>& bottom, const LayerOptions& options = {},
+                                 const detail::non_deduced_t<LayerRequest<Real>>& request = {});
 
-/// T in a context where it is not deduced (so RoughDielectric converts to Boundary in solve_layer).
-template <class T>
-struct NonDeducedImpl {
-    using type = T;
-};
-template <class T>
-using NonDeduced = typename NonDeducedImpl<T>::type;
+namespace detail {
 
 template <class Real>
 ComponentOperators<Real> interface_component(const InterfaceOperators<Real>& ops, int k) {
@@ -235,7 +243,7 @@ Real diffuse_size(const ComponentOperators<Real>& c, const std::vector<Real>& mu
 
 }  // namespace detail
 
-/// The solved layer: evaluate its BRDF, BTDF, albedo, transmittance and ambient term at any direction.
+/// The solved layer: evaluate its BRDF, BTDF, reflectance, transmittance and ambient term at any direction.
 /// Built by solve_layer / solve_stack. Evaluation functions take an optional Workspace so that repeated
 /// calls allocate nothing; they are const and thread-safe with one Workspace per thread.
 /// Degenerate arguments give 0, as in pbrt (never NaN, never an exception): a direction with a NaN or infinite
@@ -297,14 +305,14 @@ public:
 
     /// Directional-hemispherical reflectance for incidence cosine mu_i in (0, 1]: {surface, subsurface}
     /// (0 outside (0, 1]). The subsurface part includes the unscattered beam (see direct_reflectance).
-    struct Albedo {
+    struct Reflectance {
         Real surface, subsurface;
         Real total() const noexcept { return surface + subsurface; }
     };
-    Albedo albedo(Real mu_i) const {
+    Reflectance reflectance(Real mu_i) const {
         if (!(mu_i > 0 && mu_i <= 1)) return {Real(0), Real(0)};
         Workspace ws;
-        Albedo a{top_.reflectance(mu_i), Real(0)};
+        Reflectance a{top_.hemispherical_reflectance(mu_i), Real(0)};
         if (includes(outputs_, LayerOutput::subsurface_reflection))
             a.subsurface = non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, false, ws), exit_top_)) +
                            direct(mu_i, false);
@@ -324,9 +332,9 @@ public:
     /// reflection at the bottom, through the top in the mirror direction (direct_reflectance). These are the
     /// fractions of the incident flux they carry, computed exactly at the true angle (Fresnel factors, the
     /// attenuation e^{-tau/mu'} and the geometric series of bounces between the faces); 0 otherwise.
-    /// albedo() and transmittance() include them; the scattered light is scaled so that it receives exactly the
+    /// reflectance() and transmittance() include them; the scattered light is scaled so that it receives exactly the
     /// energy the true beam loses, which keeps a non-absorbing layer exactly energy-conserving.
-    /// Like transmittance() and albedo(), they are 0 when their output (LayerOutput::transmission,
+    /// Like transmittance() and reflectance(), they are 0 when their output (LayerOutput::transmission,
     /// subsurface_reflection) was not requested.
     Real direct_transmittance(Real mu_i) const {
         return includes(outputs_, LayerOutput::transmission) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, true) : Real(0);
@@ -347,12 +355,16 @@ public:
     }
     Real ambient(Vec3<Real> wo) const { Workspace ws; return ambient(wo, ws); }
 
-    /// The solver; see solve_stack (the documented entry point).
+private:
+    // The solver behind solve_stack and solve_layer, the public entry points.
     static LayeredSurface solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                 const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
                                 const LayerOptions& options, const LayerRequest<Real>& request);
+    template <class R>
+    friend LayeredSurface<R> solve_stack(const detail::non_deduced_t<Boundary<R>>&, const std::vector<Slab<R>>&,
+                                         const std::vector<Boundary<R>>&, const detail::non_deduced_t<Boundary<R>>&,
+                                         const LayerOptions&, const detail::non_deduced_t<LayerRequest<R>>&);
 
-private:
     LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
 
     static constexpr Real pi() noexcept { return Real(3.141592653589793238462643383279502884L); }
@@ -388,7 +400,7 @@ private:
     void entry(Real mu_i, Workspace& ws) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.c.assign(kk * m, Real(0));
-        const Real flux = !top_.rough() || mu_i < tables().grazing ? top_.transmittance(mu_i)
+        const Real flux = !top_.rough() || mu_i < tables().grazing ? top_.hemispherical_transmittance(mu_i)
                                                                     : non_negative(tables().top_in(mu_i));
         if (!(flux > 0)) return;
         Real specular_share = 1;
@@ -396,7 +408,7 @@ private:
             ws.in.resize(static_cast<std::size_t>(top_ops_->modes()));
             Real gauss = 0;
             for (std::size_t i = 0; i < m; ++i) {
-                top_ops_->t12(mu_i, q_.nodes[i], ws.in.data());
+                top_ops_->t12_coefficients(mu_i, q_.nodes[i], ws.in.data());
                 gauss += q_.weights[i] * q_.nodes[i] * ws.in[0];
                 for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = ws.in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
             }
@@ -526,7 +538,7 @@ private:
         if (boundary.rough()) {
             const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
             const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
-            const Real t_outside = mu_o < tables().grazing ? boundary.transmittance(outside)
+            const Real t_outside = mu_o < tables().grazing ? boundary.hemispherical_transmittance(outside)
                                    : non_negative(bottom ? tables().bottom_in(mu_o) : tables().top_in(mu_o));
             const Real expected = (n_out / n_in) * (n_out / n_in) * t_outside;
             if (!(expected > 0)) return;
@@ -537,8 +549,8 @@ private:
             ws.in.resize(static_cast<std::size_t>(ops.modes()));
             Real gauss = 0;
             for (std::size_t i = 0; i < m; ++i) {
-                if (bottom) ops.t12(q_.nodes[i], mu_o, ws.in.data());  // layer (above the bottom) -> medium 3
-                else ops.t21(q_.nodes[i], mu_o, ws.in.data());         // layer (below the top) -> medium 1
+                if (bottom) ops.t12_coefficients(q_.nodes[i], mu_o, ws.in.data());  // layer (above the bottom) -> medium 3
+                else ops.t21_coefficients(q_.nodes[i], mu_o, ws.in.data());         // layer (below the top) -> medium 1
                 const Real wm = q_.weights[i] * q_.nodes[i];
                 gauss += wm * ws.in[0];
                 for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] = wm * ws.in[k];
@@ -643,8 +655,8 @@ private:
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled)
-    // Rough boundaries: the transmittance of light arriving from outside, tabulated on first use (64 albedo
-    // integrals each, so a solve for albedos alone does not pay for them); std::call_once keeps it thread-safe.
+    // Rough boundaries: the transmittance of light arriving from outside, tabulated on first use (64 hemispherical
+    // integrals each, so a solve for fluxes alone does not pay for them); std::call_once keeps it thread-safe.
     struct Tables {
         std::once_flag once;
         detail::MuTable<Real> top_in, bottom_in;
@@ -654,8 +666,8 @@ private:
     const Tables& tables() const {
         std::call_once(tables_->once, [this] {
             constexpr int intervals = 64;
-            if (top_.rough()) tables_->top_in.build(intervals, [this](Real mu) { return top_.transmittance(mu); });
-            if (bottom_.rough()) tables_->bottom_in.build(intervals, [this](Real mu) { return bottom_.transmittance(-mu); });
+            if (top_.rough()) tables_->top_in.build(intervals, [this](Real mu) { return top_.hemispherical_transmittance(mu); });
+            if (bottom_.rough()) tables_->bottom_in.build(intervals, [this](Real mu) { return bottom_.hemispherical_transmittance(-mu); });
             tables_->grazing = Real(1) / Real(intervals * intervals);
         });
         return *tables_;
@@ -663,14 +675,11 @@ private:
     std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
 };
 
-/// Solves a stack: `top` boundary, then slabs[0], interior[0], slabs[1], ..., slabs[N-1], then `bottom`
-/// (interior.size() == slabs.size() - 1). Adjacent indices must agree (top.eta_below() ==
-/// interior[0].eta_above(), ...). Throws std::invalid_argument for inconsistent input or bad options.
 template <class Real>
-LayeredSurface<Real> solve_stack(const detail::NonDeduced<Boundary<Real>>& top, const std::vector<Slab<Real>>& slabs,
+LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& top, const std::vector<Slab<Real>>& slabs,
                                  const std::vector<Boundary<Real>>& interior,
-                                 const detail::NonDeduced<Boundary<Real>>& bottom, const LayerOptions& options = {},
-                                 const detail::NonDeduced<LayerRequest<Real>>& request = {}) {
+                                 const detail::non_deduced_t<Boundary<Real>>& bottom, const LayerOptions& options,
+                                 const detail::non_deduced_t<LayerRequest<Real>>& request) {
     return LayeredSurface<Real>::solve(top, slabs, interior, bottom, options, request);
 }
 
@@ -762,15 +771,15 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
             return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
         }
     };
-    // Hemispherical transmittance out of the layer at each ordinate (for albedo/transmittance fluxes).
+    // Hemispherical transmittance out of the layer at each ordinate (for the reflectance/transmittance fluxes).
     s.exit_top_.resize(m);
     s.exit_bottom_.resize(m);
     // (the renormalized rough operators computed these totals already)
-    const auto& top_totals = s.top_ops_->ordinate_albedo(Incidence::from_below);
-    const auto& bottom_totals = s.bottom_ops_->ordinate_albedo(Incidence::from_above);
+    const auto& top_totals = s.top_ops_->ordinate_totals(Incidence::from_below);
+    const auto& bottom_totals = s.bottom_ops_->ordinate_totals(Incidence::from_above);
     for (std::size_t i = 0; i < m; ++i) {
-        s.exit_top_[i] = top_totals.size() == m ? top_totals[i].transmittance : top.transmittance(-q.nodes[i]);
-        s.exit_bottom_[i] = bottom_totals.size() == m ? bottom_totals[i].transmittance : bottom.transmittance(q.nodes[i]);
+        s.exit_top_[i] = top_totals.size() == m ? top_totals[i].transmittance : top.hemispherical_transmittance(-q.nodes[i]);
+        s.exit_bottom_[i] = bottom_totals.size() == m ? bottom_totals[i].transmittance : bottom.hemispherical_transmittance(q.nodes[i]);
     }
 
     using detail::Matrix;
@@ -897,9 +906,9 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
 
 /// Solves one layer: `slab` between `top` (media 1 | 2) and `bottom` (2 | 3). See solve_stack.
 template <class Real>
-LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const detail::NonDeduced<Boundary<Real>>& top,
-                                 const detail::NonDeduced<Boundary<Real>>& bottom, const LayerOptions& options = {},
-                                 const detail::NonDeduced<LayerRequest<Real>>& request = {}) {
+LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const detail::non_deduced_t<Boundary<Real>>& top,
+                                 const detail::non_deduced_t<Boundary<Real>>& bottom, const LayerOptions& options = {},
+                                 const detail::non_deduced_t<LayerRequest<Real>>& request = {}) {
     return solve_stack(top, std::vector<Slab<Real>>{slab}, std::vector<Boundary<Real>>{}, bottom, options, request);
 }
 

@@ -26,7 +26,7 @@
 // removes the linear error growth of the plain recurrence near the poles.
 // Measured against exact-arithmetic references (tests/data/gen_legendre.py; l <= 2000, k <= 2000,
 // x up to 1 - 2^-40): worst relative error 3.1e-14 in double, 5.2e-6 in float; the addition theorem
-// holds to 1.8e-14 at l = 2000. ~9 ns per value (coefficients computed on the fly).
+// holds to 1.8e-14 at l = 2000. Recurrence coefficients are computed on the fly (BM_legendre_lambda_all).
 // x = +-1 exactly gives the limits (Lambda_l^0 = (+-1)^l, Lambda_l^k = 0 for k > 0).
 //
 // API: legendre_p(l, x), legendre_p_all(lmax, x, out), legendre_lambda(l, k, x),

@@ -113,7 +113,7 @@ STRATUM_HOST_DEVICE W sample_visible_slope(W a, W u) noexcept {
 }  // namespace detail
 
 /// Beckmann distribution of facet normals for a Gaussian surface of RMS slope sigma.
-template <class Real>
+template <class Real = double>
 class Beckmann {
 public:
     /// sigma: RMS slope, 0 < sigma < inf (alpha = sqrt(2) sigma). Throws std::invalid_argument otherwise.

@@ -56,7 +56,7 @@ Real refracted_distance(Real s_i, Real cos_i, Real eta) noexcept {
 }
 
 /// The single-scattering term for one homogeneous medium with a Henyey-Greenstein phase function.
-template <class Real>
+template <class Real = double>
 class SingleScattering {
 public:
     /// sigma_s in [0, sigma_t], sigma_t > 0 (1/length, finite), g in (-1, 1), eta = n_medium / n_outside > 0.

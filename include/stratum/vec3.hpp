@@ -11,7 +11,7 @@
 
 namespace stratum {
 
-template <class Real>
+template <class Real = double>
 struct Vec3 {
     Real x{}, y{}, z{};
 };

@@ -35,10 +35,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const auto layer = stratum::solve_layer(slab, top, bottom, options);
         const double mu = in.in(0, 1);
         if (!(mu > 0 && mu <= 1)) return 0;
-        const auto a = layer.albedo(mu);
+        const auto a = layer.reflectance(mu);
         const double t = layer.transmittance(mu);
-        require(std::isfinite(a.surface) && std::isfinite(a.subsurface) && std::isfinite(t), "finite albedo");
-        require(a.surface >= 0 && a.subsurface >= 0 && t >= 0, "albedo and transmittance >= 0");
+        require(std::isfinite(a.surface) && std::isfinite(a.subsurface) && std::isfinite(t), "finite reflectance and transmittance");
+        require(a.surface >= 0 && a.subsurface >= 0 && t >= 0, "reflectance and transmittance >= 0");
         // Energy: rough faces are discretized (renormalized to their exact totals), so allow their
         // discretization error; the bound is loose on purpose: it catches blow-ups, not accuracy.
         require(a.total() + t <= 1 + 1e-3, "no energy created");

@@ -1,7 +1,7 @@
 // libFuzzer target over the pointwise modules: any bytes become parameters (valid or not) and directions.
 // Promises checked: a constructor either throws std::invalid_argument or yields an object whose evaluation
 // functions return finite, non-negative values for every unit direction and sample in range; samples are
-// unit vectors with a positive pdf or are flagged invalid; albedos lie in [0, 1].
+// unit vectors with a positive pdf or are flagged invalid; hemispherical totals lie in [0, 1].
 #include <stratum/dipole.hpp>
 #include <stratum/fresnel.hpp>
 #include <stratum/henyey_greenstein.hpp>
@@ -57,9 +57,9 @@ void rough_dielectric(Input& in) {
             require(std::fabs(stratum::dot(s.wo, s.wo) - 1) < 1e-9, "sampled direction is a unit vector");
         }
         if ((in.byte() & 15) == 0) {  // the hemispherical integral costs up to a millisecond
-            const auto a = face.albedo(wi.z);
+            const auto a = face.hemispherical_totals(wi.z);
             require(a.reflectance >= 0 && a.transmittance >= 0 && a.reflectance + a.transmittance <= 1 + 1e-6,
-                    "RoughDielectric::albedo in [0, 1]");
+                    "RoughDielectric::hemispherical_totals in [0, 1]");
         }
     } catch (const std::invalid_argument&) {
     }
