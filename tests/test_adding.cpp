@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "reference_phase.hpp"
+#include "reference/reference_phase.hpp"
 
 using stratum::add_components;
 using stratum::ComponentOperators;

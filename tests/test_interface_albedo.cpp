@@ -1,5 +1,5 @@
 // RoughDielectric::albedo (the fast facet-slope integral) against the slow reference integral it replaced
-// (tests/rough_albedo_reference.hpp), and the accuracy of its building blocks (Lambda table, log-Gamma ratio).
+// (tests/reference/rough_albedo_reference.hpp), and the accuracy of its building blocks (Lambda table, log-Gamma ratio).
 #include <doctest/doctest.h>
 
 #include <stratum/interface.hpp>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "rough_albedo_reference.hpp"
+#include "reference/rough_albedo_reference.hpp"
 
 using stratum::RoughDielectric;
 using stratum::Shadowing;

@@ -1,4 +1,4 @@
-// The layer solver against an independent photon Monte Carlo (tests/mc_layer.hpp).
+// The layer solver against an independent photon Monte Carlo (tests/reference/mc_layer.hpp).
 //
 // The Monte Carlo shares nothing with the solver but the Fresnel formula: it samples the visible facet
 // slopes of the Gaussian surface, the Fresnel choice, exponential free paths and Henyey-Greenstein angles
@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "mc_layer.hpp"
+#include "reference/mc_layer.hpp"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define STRATUM_MC_SANITIZED 1

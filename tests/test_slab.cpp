@@ -12,7 +12,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "reference_phase.hpp"
+#include "reference/reference_phase.hpp"
 #include "test_util.hpp"
 
 using stratum::Quadrature;

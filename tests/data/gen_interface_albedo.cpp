@@ -1,12 +1,12 @@
 // Reference hemispherical energies of a rough dielectric for tests/test_interface_albedo.cpp, from the slow
-// facet-slope integral kept in tests/rough_albedo_reference.hpp (the implementation before the fast path) at
+// facet-slope integral kept in tests/reference/rough_albedo_reference.hpp (the implementation before the fast path) at
 // 56 nodes per panel, with its own error estimate |56-node - 40-node| in the last column.
 // Build and run from the repository root:
 //   g++ -O2 -std=c++17 -Iinclude tests/data/gen_interface_albedo.cpp -o /tmp/gen_albedo
 //   /tmp/gen_albedo > tests/data/interface_albedo_reference.txt          (about 15 minutes on one core)
 // Columns: sigma, eta = eta_t / eta_i, mu (incidence cosine on the eta_i side), shadowing (0 height-correlated,
 // 1 separable, 2 masking only), R, T, reference error estimate.
-#include "../rough_albedo_reference.hpp"
+#include "../reference/rough_albedo_reference.hpp"
 
 #include <cmath>
 #include <cstdio>

@@ -1,4 +1,4 @@
-// tests/mc_layer.hpp -- an independent photon Monte Carlo of a plane-parallel scattering layer between two
+// tests/reference/mc_layer.hpp -- an independent photon Monte Carlo of a plane-parallel scattering layer between two
 // dielectric boundaries (test-only code; not part of the library).
 //
 // It shares nothing with the solver but the Fresnel formula (stratum::fresnel_dielectric, tested on its own

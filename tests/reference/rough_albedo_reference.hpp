@@ -1,9 +1,13 @@
-// The rough-dielectric albedo integral as it was before the fast path (stratum commit 3df7dd5,
-// include/stratum/interface.hpp, detail::rough_hemispherical_totals): slow (2-5 ms at 16 nodes, ~30 ms at 40) but simple,
-// kept here only as an independent reference for tests/test_interface_albedo.cpp. Differences from the fast
-// path: long Gaussian range (L = sqrt(ln(1/eps)) + 1), two fixed breakpoint grids, no pair grading, exact
-// Lambda and lgamma per facet. Its own error at 40 nodes, measured against 56: <= 4e-9 (masking_only near
-// the critical-angle / refracted-horizon tangency), <= 3e-10 otherwise.
+// tests/reference/rough_albedo_reference.hpp -- the rough-dielectric hemispherical integral as it was before the
+// fast path (stratum commit 3df7dd5, include/stratum/interface.hpp, detail::rough_albedo): slow (2-5 ms at 16
+// nodes, ~30 ms at 40) but simple; test-only. What it shares with the library, and what it does not: its
+// quadrature is its own (long Gaussian range L = sqrt(ln(1/eps)) + 1, two fixed breakpoint grids, no pair
+// grading, no Taylor tables: exact Lambda and the Beta function per facet), so it checks the fast path's
+// panelling, maps, tables and series; the integrand's pieces (fresnel_dielectric, Beckmann::Lambda,
+// detail::smith_g2_over_g1) are the library's, each checked on its own against mpmath (test_fresnel.cpp,
+// test_microfacet.cpp, test_math.cpp) and the whole integrand against a facet-level Monte Carlo
+// (test_interface_energy.cpp). Its own error at 40 nodes, measured against 56: <= 4e-9 (masking_only near the
+// critical-angle / refracted-horizon tangency), <= 3e-10 otherwise.
 #pragma once
 
 #include <stratum/interface.hpp>

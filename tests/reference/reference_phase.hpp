@@ -1,4 +1,4 @@
-// tests/reference_phase.hpp -- Henyey-Greenstein Fourier matrices written independently of the library
+// tests/reference/reference_phase.hpp -- Henyey-Greenstein Fourier matrices written independently of the library
 // (test-only reference for the slab and adding tests; not installed).
 #pragma once
 
