@@ -1,5 +1,5 @@
-// Built with -fno-exceptions (tests/CMakeLists.txt): the pointwise modules compile and evaluate without
-// exceptions, and a rejected parameter reaches the handler set with set_invalid_parameter_handler
+// Built with -fno-exceptions (tests/CMakeLists.txt): the pointwise modules and the layer solver compile and
+// evaluate without exceptions, and a rejected parameter reaches the handler set with set_invalid_parameter_handler
 // instead of a throw. The handler here ends the program with status 0 itself (the library would abort after
 // a handler that returns); the CTest test passes when the handler's line is printed.
 #include <stratum/dipole.hpp>
@@ -7,6 +7,7 @@
 #include <stratum/henyey_greenstein.hpp>
 #include <stratum/interface.hpp>
 #include <stratum/lambert_w.hpp>
+#include <stratum/layer.hpp>
 
 #include <cstdio>
 #include <cstdlib>
@@ -25,6 +26,11 @@ int main() {
     const double values[] = {stratum::fresnel_dielectric(1.0, 1.5), stratum::HenyeyGreenstein<double>(0.8).eval(1.0),
                              face.eval({0, 0.6, 0.8}, {0.6, 0, 0.8}), skin.Rd(0.5), stratum::lambert_wm1(-0.2)};
     for (double v : values) std::printf("%.17g\n", v);
+    stratum::LayerOptions options;
+    options.ordinates = 4;
+    const auto layer = stratum::solve_layer(stratum::Slab<double>(0.9, 0.8, 1.0), face,
+                                            stratum::RoughDielectric<double>(0.3, 1.4, 1.0), options);
+    std::printf("layer reflectance %.17g\n", layer.reflectance(0.5).total());
     stratum::set_invalid_parameter_handler(report);
     const stratum::HenyeyGreenstein<double> bad(1.5);  // rejected: the handler runs
     std::printf("not reached: %g\n", bad.g());

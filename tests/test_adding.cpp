@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include <stratum/adding.hpp>
+#include <stratum/slab.hpp>  // slabs as components
 
 #include <cmath>
 #include <cstdint>

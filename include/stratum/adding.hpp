@@ -28,7 +28,7 @@
 #include <vector>
 
 #include "detail/linalg.hpp"
-#include "slab.hpp"
+#include "detail/validate.hpp"
 
 namespace stratum {
 
@@ -39,21 +39,11 @@ struct ComponentOperators {
     std::vector<Real> reflection_down, transmission_down, reflection_up, transmission_up;
 };
 
-/// A bare slab as a component: it is the same seen from above and from below.
-template <class Real>
-ComponentOperators<Real> slab_component(const SlabModeOperators<Real>& s) {
-    ComponentOperators<Real> c;
-    c.size = s.size;
-    c.reflection_down = c.reflection_up = s.reflection;
-    c.transmission_down = c.transmission_up = s.transmission;
-    return c;
-}
-
 namespace detail {
 
 template <class Real>
 Matrix<Real> as_matrix(std::size_t n, const std::vector<Real>& v) {
-    if (v.size() != n * n) throw std::invalid_argument("stratum: component operator is not size x size");
+    if (v.size() != n * n) detail::fail_invalid_argument("stratum: component operator is not size x size");
     Matrix<Real> m(n, n);
     m.data = v;
     return m;
@@ -74,7 +64,7 @@ Matrix<Real> one_minus_product(const Matrix<Real>& a, const Matrix<Real>& b) {
 /// Throws std::invalid_argument if the sizes differ.
 template <class Real>
 ComponentOperators<Real> add_components(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom) {
-    if (top.size != bottom.size) throw std::invalid_argument("stratum: adding components of different sizes");
+    if (top.size != bottom.size) detail::fail_invalid_argument("stratum: adding components of different sizes");
     const std::size_t n = top.size;
     using detail::Matrix;
     const Matrix<Real> r1d = detail::as_matrix(n, top.reflection_down), t1d = detail::as_matrix(n, top.transmission_down);

@@ -694,14 +694,14 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     if (!(request.tolerance >= 0 && request.tolerance < 1))
         detail::throw_out_of_range("request.tolerance", request.tolerance, "[0, 1)");
     if (interior.size() + 1 != slabs.size())
-        throw std::invalid_argument("stratum: solve_stack needs interior.size() == slabs.size() - 1, got " +
+        detail::fail_invalid_argument("stratum: solve_stack needs interior.size() == slabs.size() - 1, got " +
                                     std::to_string(interior.size()) + " and " + std::to_string(slabs.size()));
     {
         Real above = top.eta_below();
         for (std::size_t i = 0; i <= interior.size(); ++i) {
             const Real below = i < interior.size() ? interior[i].eta_above() : bottom.eta_above();
             if (below != above)
-                throw std::invalid_argument("stratum: boundary indices disagree around slab " + std::to_string(i) + ": " +
+                detail::fail_invalid_argument("stratum: boundary indices disagree around slab " + std::to_string(i) + ": " +
                                             detail::format_value(above) + " above it, " + detail::format_value(below) +
                                             " below it");
             if (i < interior.size()) above = interior[i].eta_below();
@@ -760,16 +760,12 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                                                            std::numeric_limits<Real>::infinity());
         }
     }
-    // The slab modes, with an inadmissible truncated phase function reported as a parameter problem.
-    // A phase function too peaked for the ordinates (|g| near 1 without delta-M, or any g < 0 near -1, whose
-    // backward peak delta-M cannot remove) has a truncated expansion that is not admissible on them: the slab
-    // solver then regularizes its aliased part (slab.hpp), which keeps the results finite and energy-conserving.
+    // The slab modes. A phase function too peaked for the ordinates (|g| near 1 without delta-M, or any g < 0
+    // near -1, whose backward peak delta-M cannot remove) has a truncated expansion that is not admissible on
+    // them: the slab solver then regularizes its aliased part (regularize_aliased_phase = true; slab.hpp), which
+    // keeps the results finite and energy-conserving. Admissible phase functions are solved as without it.
     auto slab_mode = [&](const detail::SlabModes<Real>& p, int k) {
-        try {
-            return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k));
-        } catch (const std::domain_error&) {
-            return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
-        }
+        return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
     };
     // Hemispherical transmittance out of the layer at each ordinate (for the reflectance/transmittance fluxes).
     s.exit_top_.resize(m);

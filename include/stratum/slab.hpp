@@ -59,6 +59,7 @@
 #include <string>
 #include <vector>
 
+#include "adding.hpp"
 #include "detail/linalg.hpp"
 #include "detail/validate.hpp"
 #include "quadrature.hpp"
@@ -115,6 +116,16 @@ struct SlabModeOperators {
     Real r(std::size_t n, std::size_t m) const noexcept { return reflection[n * size + m]; }
     Real t(std::size_t n, std::size_t m) const noexcept { return transmission[n * size + m]; }
 };
+
+/// A bare slab as a component of the adding equations (adding.hpp): the same seen from above and from below.
+template <class Real>
+ComponentOperators<Real> slab_component(const SlabModeOperators<Real>& s) {
+    ComponentOperators<Real> c;
+    c.size = s.size;
+    c.reflection_down = c.reflection_up = s.reflection;
+    c.transmission_down = c.transmission_up = s.transmission;
+    return c;
+}
 
 namespace detail {
 
@@ -200,7 +211,7 @@ SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<
     const bool triangular = cholesky(s_minus, l);
     if (!triangular) {
         if (!regularize_aliased_phase)
-            throw std::domain_error("stratum: slab mode " + std::to_string(k) +
+            detail::fail_domain_error("stratum: slab mode " + std::to_string(k) +
                                     ": the discretized phase function is not admissible on these ordinates "
                                     "(S- is not positive definite: too peaked for M ordinates; use delta-M scaling)");
         regularize(s_minus, mu, true, &l, &l_inverse_transposed);
@@ -366,9 +377,9 @@ void slab_boundary_solve(const SlabEigensystem<Real>& es, Real tau, Matrix<Real>
 
 template <class Real>
 void check_ordinates(const Quadrature<Real>& q) {
-    if (q.nodes.empty()) throw std::invalid_argument("stratum: the ordinate set is empty");
+    if (q.nodes.empty()) detail::fail_invalid_argument("stratum: the ordinate set is empty");
     if (q.weights.size() != q.nodes.size())
-        throw std::invalid_argument("stratum: ordinates and weights differ in number");
+        detail::fail_invalid_argument("stratum: ordinates and weights differ in number");
     for (std::size_t i = 0; i < q.size(); ++i) {
         if (!(q.nodes[i] > Real(0) && q.nodes[i] <= Real(1))) throw_out_of_range("ordinate", q.nodes[i], "(0, 1]");
         require_positive("ordinate weight", q.weights[i]);
@@ -446,7 +457,7 @@ SlabModeOperators<Real> solve_slab_mode(const Slab<Real>& slab, const Quadrature
                                         bool regularize_aliased_phase = false) {
     const std::size_t need = ordinates.size() * ordinates.size();
     if (p_same.size() != need || p_opposite.size() != need)
-        throw std::invalid_argument("stratum: phase matrices must be M x M for M ordinates");
+        detail::fail_invalid_argument("stratum: phase matrices must be M x M for M ordinates");
     return solve_slab_mode(slab, ordinates, p_same.data(), p_opposite.data(), k, regularize_aliased_phase);
 }
 
