@@ -3,6 +3,7 @@
 #pragma once
 
 // Numerics
+#include "azimuthal_quadrature.hpp"
 #include "legendre.hpp"
 #include "quadrature.hpp"
 
