@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <optional>
 #include <type_traits>
 #include <vector>
 
@@ -245,7 +246,7 @@ public:
         const bool reciprocal = interface.shadowing() != Shadowing::masking_only;
         if (!reciprocal) {
             const auto build = [&](Incidence side, bool transmission) {
-                const detail::RoughKernel<Real> kernel{&rough_, side, transmission};
+                const detail::RoughKernel<Real> kernel{&*rough_, side, transmission};
                 return fourier_operators(kernel, [&kernel](Real x, Real y) { return kernel.features(x, y); },
                                          ordinates, modes, rule_);
             };
@@ -287,7 +288,7 @@ public:
     /// Throws std::invalid_argument for modes < 1, an empty ordinate set or points < 0.
     InterfaceOperators(const SmoothDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
                        SpecularTransmission transmission = SpecularTransmission::pointwise, int points = 0)
-        : rough_(Real(1), interface.eta_above(), interface.eta_below()), modes_(detail::require_count("modes", modes, 1)),
+        : modes_(detail::require_count("modes", modes, 1)),
           index_matched_(interface.eta_above() == interface.eta_below()), specular_(true) {
         detail::require_count("ordinates", static_cast<int>(ordinates.size()), 1);
         detail::require_count("points", points, 0);
@@ -400,7 +401,7 @@ public:
             for (int k = 0; k < modes_; ++k) out[k] = Real(0);
             return;
         }
-        const detail::RoughKernel<Real> kernel{&rough_, side, transmission};
+        const detail::RoughKernel<Real> kernel{&*rough_, side, transmission};
         azimuthal_coefficients(kernel, mu_in, mu_out, kernel.features(mu_in, mu_out), modes_, out, rule_);
     }
 
@@ -420,11 +421,11 @@ private:
         for (int side = 0; side < 2; ++side) {
             FourierOperators<Real>& r = side == 0 ? r12_ : r21_;
             FourierOperators<Real>& t = side == 0 ? t12_ : t21_;
-            const Real eta_i = side == 0 ? rough_.eta_above() : rough_.eta_below();
-            const Real eta_o = side == 0 ? rough_.eta_below() : rough_.eta_above();
+            const Real eta_i = side == 0 ? rough_->eta_above() : rough_->eta_below();
+            const Real eta_o = side == 0 ? rough_->eta_below() : rough_->eta_above();
             for (int m = 0; m < m_count; ++m) {
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
-                const HemisphericalTotals<Real> target = rough_.hemispherical_totals(side == 0 ? mu : -mu);
+                const HemisphericalTotals<Real> target = rough_->hemispherical_totals(side == 0 ? mu : -mu);
                 (side == 0 ? totals_above_ : totals_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {
                     FourierOperators<Real>& op = lobe == 0 ? r : t;
@@ -471,7 +472,7 @@ private:
         t21_ = FourierOperators<Real>::identity(m, modes_);
     }
 
-    RoughDielectric<Real> rough_;  // the rough interface (a placeholder for a smooth one)
+    std::optional<RoughDielectric<Real>> rough_;  // the rough interface; empty for a smooth one
     AzimuthalQuadrature<Real> rule_;
     int modes_;
     bool index_matched_;
