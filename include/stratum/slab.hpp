@@ -181,19 +181,19 @@ Matrix<Real> regularize(const Matrix<Real>& s, const std::vector<Real>& mu, bool
     return rebuilt;
 }
 
-/// Builds S(+-) (physics-notes 6), factors S- and solves the symmetric eigenproblem L^T S+ L.
-/// p_same[n M + m] = p_k(mu_m, mu_n), p_opposite[n M + m] = p_k(-mu_m, mu_n). Omega_k is formed as
-/// c_k (1 - one_minus_albedo) with the conservative part c_k P kept separate: S = S_c + om c_k g g P,
-/// so that 1 - Omega enters as given.
+/// S(+-) = diag(1 / mu) - Omega_k G (P+ +- P-) G, G = diag(sqrt(w / mu)), symmetrized (docs/physics.md
+/// section 6). Omega_k = c_k (1 - one_minus_albedo) with the conservative part c_k P kept separate,
+/// S = S_c + (1 - Omega) c_k G P G, so that 1 - Omega enters as given.
 template <class Real>
-SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<Real>& mu, const std::vector<Real>& w,
-                                       const Real* p_same, const Real* p_opposite, int k,
-                                       bool regularize_aliased_phase = false) {
+void slab_symmetric_parts(Real one_minus_albedo, const std::vector<Real>& mu, const std::vector<Real>& w,
+                          const Real* p_same, const Real* p_opposite, int k, Matrix<Real>& s_plus,
+                          Matrix<Real>& s_minus) {
     const std::size_t m_size = mu.size();
     const Real ck = k == 0 ? Real(0.5) : Real(0.25);
     std::vector<Real> gs(m_size);
     for (std::size_t i = 0; i < m_size; ++i) gs[i] = std::sqrt(w[i] / mu[i]);
-    Matrix<Real> s_plus(m_size, m_size), s_minus(m_size, m_size);
+    s_plus = Matrix<Real>(m_size, m_size);
+    s_minus = Matrix<Real>(m_size, m_size);
     for (std::size_t i = 0; i < m_size; ++i) {
         for (std::size_t j = 0; j < m_size; ++j) {
             const Real same = (p_same[i * m_size + j] + p_same[j * m_size + i]) / Real(2);
@@ -204,6 +204,80 @@ SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<
             s_minus(i, j) = (diag - f * (same - opp)) + one_minus_albedo * f * (same - opp);
         }
     }
+}
+
+/// Omega = 1 at k = 0 with a discretely conservative phase function, sum_m w_m (P+ + P-)_nm = 2 to rounding:
+/// then K+ w = 0 exactly and lambda_0 = 0 is the conservation mode.
+template <class Real>
+bool discretely_conservative(Real one_minus_albedo, int k, const std::vector<Real>& w, const Real* p_same,
+                             const Real* p_opposite) {
+    if (!(one_minus_albedo == Real(0) && k == 0)) return false;
+    const std::size_t m_size = w.size();
+    Real defect = 0;
+    for (std::size_t i = 0; i < m_size; ++i) {
+        Real sum = 0;
+        for (std::size_t j = 0; j < m_size; ++j) sum += w[j] * (p_same[i * m_size + j] + p_opposite[i * m_size + j]);
+        defect = std::fmax(defect, std::fabs(sum / Real(2) - Real(1)));
+    }
+    return defect <= Real(64) * Real(m_size) * std::numeric_limits<Real>::epsilon();
+}
+
+/// Eigen-decomposition of the symmetric F with its known null vector v0 deflated analytically: the
+/// Householder reflection H = I - beta u u^T maps v0 to -+|v0| e_1, so H F H = [[0, 0], [0, B]] with
+/// B = (F - u q^T - q u^T) restricted to indices >= 1 (p = beta F u, q = p - (beta u.p / 2) u); the
+/// eigenvalues are 0 and those of B, the vectors H [[1, 0], [0, V_B]].
+template <class Real>
+SymmetricEigen<Real> symmetric_eigen_deflated(const Matrix<Real>& f, const Matrix<Real>& v0) {
+    const std::size_t m_size = f.rows;
+    Real norm = 0;
+    for (std::size_t i = 0; i < m_size; ++i) norm += v0(i, 0) * v0(i, 0);
+    norm = std::sqrt(norm);
+    std::vector<Real> u(m_size);
+    for (std::size_t i = 0; i < m_size; ++i) u[i] = v0(i, 0) / norm;
+    u[0] += u[0] >= 0 ? Real(1) : Real(-1);  // H = I - beta u u^T maps v0 to -+e_1
+    Real utu = 0;
+    for (const Real x : u) utu += x * x;
+    const Real beta = Real(2) / utu;
+    std::vector<Real> pv(m_size), qv(m_size);  // H F H = F - u q^T - q u^T
+    Real pu = 0;
+    for (std::size_t i = 0; i < m_size; ++i) {
+        Real sum = 0;
+        for (std::size_t j = 0; j < m_size; ++j) sum += f(i, j) * u[j];
+        pv[i] = beta * sum;
+        pu += pv[i] * u[i];
+    }
+    for (std::size_t i = 0; i < m_size; ++i) qv[i] = pv[i] - beta * pu / Real(2) * u[i];
+    Matrix<Real> b(m_size - 1, m_size - 1);
+    for (std::size_t i = 1; i < m_size; ++i)
+        for (std::size_t j = 1; j < m_size; ++j) b(i - 1, j - 1) = f(i, j) - u[i] * qv[j] - qv[i] * u[j];
+    const SymmetricEigen<Real> eb = symmetric_eigen(b);
+    SymmetricEigen<Real> e;
+    e.converged = eb.converged;
+    e.values.assign(1, Real(0));
+    e.values.insert(e.values.end(), eb.values.begin(), eb.values.end());
+    e.vectors = Matrix<Real>(m_size, m_size);  // V = H [[1, 0], [0, V_b]]
+    for (std::size_t j = 0; j < m_size; ++j) {
+        std::vector<Real> col(m_size, Real(0));
+        if (j == 0) col[0] = Real(1);
+        else
+            for (std::size_t i = 1; i < m_size; ++i) col[i] = eb.vectors(i - 1, j - 1);
+        Real dot = 0;
+        for (std::size_t i = 0; i < m_size; ++i) dot += u[i] * col[i];
+        for (std::size_t i = 0; i < m_size; ++i) e.vectors(i, j) = col[i] - beta * dot * u[i];
+    }
+    return e;
+}
+
+/// Builds S(+-) (slab_symmetric_parts), factors S- = L L^T and solves the symmetric eigenproblem
+/// F = L^T S+ L, whose eigenvalues are lambda^2 (docs/physics.md section 6). p_same[n M + m] = p_k(mu_m, mu_n),
+/// p_opposite[n M + m] = p_k(-mu_m, mu_n).
+template <class Real>
+SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<Real>& mu, const std::vector<Real>& w,
+                                       const Real* p_same, const Real* p_opposite, int k,
+                                       bool regularize_aliased_phase = false) {
+    const std::size_t m_size = mu.size();
+    Matrix<Real> s_plus, s_minus;
+    slab_symmetric_parts(one_minus_albedo, mu, w, p_same, p_opposite, k, s_plus, s_minus);
     // Factor S- = L L^T: Cholesky when S- is positive definite (always for a phase function the rule
     // resolves); otherwise refuse (std::domain_error), or, if asked, regularize the odd part (see
     // regularize; L is then not triangular).
@@ -217,22 +291,12 @@ SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<
         regularize(s_minus, mu, true, &l, &l_inverse_transposed);
     }
 
-    // Omega = 1 at k = 0 with a discretely conservative phase function (sum_m w_m (P+ + P-)_nm = 2):
-    // K+ w = 0 exactly, so F = L^T S+ L has the null vector v0 = L^{-1} sqrt(w mu), and lambda_0 = 0 is
-    // set exactly. In the aliased regime (regularized factors), where other eigenvalues crowd 0, v0 is
-    // also deflated analytically (a Householder reflection maps v0 to e_1, the eigenproblem is solved on
-    // the complement): energy is then conserved to ~1e-14 instead of ~1e-8. (Deflating always would cost
-    // accuracy at grazing ordinates for large M: 2e-10 instead of 4e-12 at M = 128, measured.)
-    bool conservative = false;
-    if (one_minus_albedo == Real(0) && k == 0) {
-        Real defect = 0;
-        for (std::size_t i = 0; i < m_size; ++i) {
-            Real sum = 0;
-            for (std::size_t j = 0; j < m_size; ++j) sum += w[j] * (p_same[i * m_size + j] + p_opposite[i * m_size + j]);
-            defect = std::fmax(defect, std::fabs(sum / Real(2) - Real(1)));
-        }
-        conservative = defect <= Real(64) * Real(m_size) * std::numeric_limits<Real>::epsilon();
-    }
+    // Omega = 1 at k = 0 with a discretely conservative phase function: F = L^T S+ L has the null vector
+    // v0 = L^{-1} sqrt(w mu), and lambda_0 = 0 is set exactly. In the aliased regime (regularized factors),
+    // where other eigenvalues crowd 0, v0 is also deflated analytically (symmetric_eigen_deflated): energy is
+    // then conserved to ~1e-14 instead of ~1e-8. (Deflating always would cost accuracy at grazing ordinates
+    // for large M: 2e-10 instead of 4e-12 at M = 128, measured.)
+    const bool conservative = discretely_conservative(one_minus_albedo, k, w, p_same, p_opposite);
     bool deflate = !triangular;
     auto eigen_of_f = [&]() {
         Matrix<Real> f = multiply(transpose(l), multiply(s_plus, l));
@@ -241,44 +305,7 @@ SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<
         if (!conservative || !deflate) return symmetric_eigen(f);
         Matrix<Real> c(m_size, 1);
         for (std::size_t i = 0; i < m_size; ++i) c(i, 0) = std::sqrt(w[i] * mu[i]);
-        const Matrix<Real> v0m = triangular ? solve_lower(l, c) : multiply(transpose(l_inverse_transposed), c);
-        Real norm = 0;
-        for (std::size_t i = 0; i < m_size; ++i) norm += v0m(i, 0) * v0m(i, 0);
-        norm = std::sqrt(norm);
-        std::vector<Real> u(m_size);
-        for (std::size_t i = 0; i < m_size; ++i) u[i] = v0m(i, 0) / norm;
-        u[0] += u[0] >= 0 ? Real(1) : Real(-1);  // H = I - beta u u^T maps v0 to -+e_1
-        Real utu = 0;
-        for (const Real x : u) utu += x * x;
-        const Real beta = Real(2) / utu;
-        std::vector<Real> pv(m_size), qv(m_size);  // H F H = F - u q^T - q u^T
-        Real pu = 0;
-        for (std::size_t i = 0; i < m_size; ++i) {
-            Real sum = 0;
-            for (std::size_t j = 0; j < m_size; ++j) sum += f(i, j) * u[j];
-            pv[i] = beta * sum;
-            pu += pv[i] * u[i];
-        }
-        for (std::size_t i = 0; i < m_size; ++i) qv[i] = pv[i] - beta * pu / Real(2) * u[i];
-        Matrix<Real> b(m_size - 1, m_size - 1);
-        for (std::size_t i = 1; i < m_size; ++i)
-            for (std::size_t j = 1; j < m_size; ++j) b(i - 1, j - 1) = f(i, j) - u[i] * qv[j] - qv[i] * u[j];
-        const SymmetricEigen<Real> eb = symmetric_eigen(b);
-        SymmetricEigen<Real> e;
-        e.converged = eb.converged;
-        e.values.assign(1, Real(0));
-        e.values.insert(e.values.end(), eb.values.begin(), eb.values.end());
-        e.vectors = Matrix<Real>(m_size, m_size);  // V = H [[1, 0], [0, V_b]]
-        for (std::size_t j = 0; j < m_size; ++j) {
-            std::vector<Real> col(m_size, Real(0));
-            if (j == 0) col[0] = Real(1);
-            else
-                for (std::size_t i = 1; i < m_size; ++i) col[i] = eb.vectors(i - 1, j - 1);
-            Real dot = 0;
-            for (std::size_t i = 0; i < m_size; ++i) dot += u[i] * col[i];
-            for (std::size_t i = 0; i < m_size; ++i) e.vectors(i, j) = col[i] - beta * dot * u[i];
-        }
-        return e;
+        return symmetric_eigen_deflated(f, triangular ? solve_lower(l, c) : multiply(transpose(l_inverse_transposed), c));
     };
     SymmetricEigen<Real> eig = eigen_of_f();
     // lambda^2 >= 0 up to rounding (~ M eps max|lambda^2|) unless the even part is aliased too: then
