@@ -214,26 +214,19 @@ struct SymmetricEigen {
     bool converged = true;
 };
 
-/// Householder tridiagonalization followed by the implicit QL algorithm (the classical tred2/tql2
-/// pair, written afresh): ~ (4/3 + 4/3 + ~6) n^3 flops with vectors. Only the lower triangle of `a`
-/// is read. The accumulated transformation is kept transposed (rows = eigenvectors) so that every
-/// plane rotation and reflection works on contiguous rows.
+/// Step 1 of symmetric_eigen: Householder reduction of the symmetric `a` (full storage, overwritten) to
+/// tridiagonal form. For k = 0 .. n-3 the reflector H_k = I - beta_k v_k v_k^T, acting on indices k+1 .. n-1,
+/// annihilates a(k+2.., k); v_k is kept in row k of `hv`. Returns the diagonal d and the off-diagonal e
+/// (e[i] couples i and i + 1, e[n-1] = 0).
 template <class Real>
-SymmetricEigen<Real> symmetric_eigen(const Matrix<Real>& a_in) {
-    const std::size_t n = a_in.rows;
-    SymmetricEigen<Real> out;
-    out.values.assign(n, Real(0));
-    if (n == 0) return out;
-
-    Matrix<Real> a(n, n);  // full symmetric copy from the lower triangle
-    for (std::size_t i = 0; i < n; ++i)
-        for (std::size_t j = 0; j <= i; ++j) a(i, j) = a(j, i) = a_in(i, j);
-
-    std::vector<Real> d(n), e(n, Real(0));  // diagonal, and e[i] couples i and i + 1
-    // --- 1. Householder reduction: for k = 0 .. n-3 annihilate a(k+2.., k). Reflector H_k = I - beta v v^T
-    //        acts on indices k+1 .. n-1; the vectors are kept in the rows of `hv` for accumulation.
-    Matrix<Real> hv(n, n);
-    std::vector<Real> beta(n, Real(0)), p(n), q(n);
+void householder_tridiagonalize(Matrix<Real>& a, std::vector<Real>& d, std::vector<Real>& e, Matrix<Real>& hv,
+                                std::vector<Real>& beta) {
+    const std::size_t n = a.rows;
+    d.assign(n, Real(0));
+    e.assign(n, Real(0));
+    hv = Matrix<Real>(n, n);
+    beta.assign(n, Real(0));
+    std::vector<Real> p(n), q(n);
     for (std::size_t k = 0; k + 2 < n; ++k) {
         const std::size_t s = k + 1;  // first index of the trailing block
         Real scale = Real(0);
@@ -279,15 +272,18 @@ SymmetricEigen<Real> symmetric_eigen(const Matrix<Real>& a_in) {
     for (std::size_t i = 0; i < n; ++i) d[i] = a(i, i);
     if (n >= 2) e[n - 2] = a(n - 1, n - 2);
     e[n - 1] = Real(0);
+}
 
-    // --- 2. Accumulate Q = H_0 H_1 ... H_{n-3}; z holds Q^T (row i = column i of Q).
+/// Step 2: Z = Q^T with Q = H_0 H_1 ... H_{n-3} (each H symmetric), so row i of Z is column i of Q. In
+/// transposed storage Z <- Z H_k changes every row as z_r <- z_r - beta (z_r . v) v.
+template <class Real>
+Matrix<Real> accumulate_reflectors(const Matrix<Real>& hv, const std::vector<Real>& beta) {
+    const std::size_t n = hv.rows;
     Matrix<Real> z = Matrix<Real>::identity(n);
     for (std::size_t kk = n >= 2 ? n - 2 : 0; kk-- > 0;) {
         const Real b = beta[kk];
         if (b == Real(0)) continue;
         const Real* v = hv.row(kk);
-        // Q <- H_k Q on rows/cols k+1..; in transposed storage: Z <- Z H_k (H symmetric): row r of Z
-        // changes as z_r <- z_r - b (z_r . v) v, for every row r.
         for (std::size_t r = kk + 1; r < n; ++r) {
             Real* zr = z.row(r);
             Real dot = Real(0);
@@ -297,10 +293,16 @@ SymmetricEigen<Real> symmetric_eigen(const Matrix<Real>& a_in) {
             for (std::size_t j = kk + 1; j < n; ++j) zr[j] -= dot * v[j];
         }
     }
-    // Z = I H_{n-3} ... H_0 = Q^T (each H is symmetric): row i of z is column i of Q.
+    return z;
+}
 
-    // --- 3. Implicit QL on the tridiagonal (d, e); rotations are applied to rows of z.
+/// Step 3: implicit QL with Wilkinson-type shifts on the tridiagonal (d, e), the rotations applied to the rows
+/// of z; d ends as the eigenvalues. Returns false if some eigenvalue needed more than 60 iterations.
+template <class Real>
+bool tridiagonal_ql(std::vector<Real>& d, std::vector<Real>& e, Matrix<Real>& z) {
+    const std::size_t n = d.size();
     const Real eps = std::numeric_limits<Real>::epsilon();
+    bool converged = true;
     for (std::size_t l = 0; l < n; ++l) {
         int iterations = 0;
         while (true) {
@@ -311,7 +313,7 @@ SymmetricEigen<Real> symmetric_eigen(const Matrix<Real>& a_in) {
             }
             if (m == l) break;
             if (++iterations > 60) {
-                out.converged = false;
+                converged = false;
                 break;
             }
             // Shift from the leading 2x2 block, then chase the bulge from m-1 down to l.
@@ -351,8 +353,28 @@ SymmetricEigen<Real> symmetric_eigen(const Matrix<Real>& a_in) {
             e[m] = Real(0);
         }
     }
+    return converged;
+}
 
-    // --- 4. Sort ascending; vectors as columns.
+/// Eigen-decomposition of a symmetric matrix by Householder tridiagonalization and the implicit QL
+/// algorithm (the classical tred2/tql2 pair, written afresh): ~ (4/3 + 4/3 + ~6) n^3 flops with vectors.
+/// Only the lower triangle of `a_in` is read. The accumulated transformation is kept transposed (rows =
+/// eigenvectors) so that every plane rotation and reflection works on contiguous rows.
+template <class Real>
+SymmetricEigen<Real> symmetric_eigen(const Matrix<Real>& a_in) {
+    const std::size_t n = a_in.rows;
+    SymmetricEigen<Real> out;
+    out.values.assign(n, Real(0));
+    if (n == 0) return out;
+    Matrix<Real> a(n, n);  // full symmetric copy from the lower triangle
+    for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t j = 0; j <= i; ++j) a(i, j) = a(j, i) = a_in(i, j);
+    std::vector<Real> d, e, beta;
+    Matrix<Real> hv;
+    householder_tridiagonalize(a, d, e, hv, beta);
+    Matrix<Real> z = accumulate_reflectors(hv, beta);
+    out.converged = tridiagonal_ql(d, e, z);
+    // Step 4: ascending order, vectors as columns.
     std::vector<std::size_t> order(n);
     for (std::size_t i = 0; i < n; ++i) order[i] = i;
     std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return d[x] < d[y]; });
