@@ -17,6 +17,8 @@
 #include <thread>
 #include <vector>
 
+#include "test_util.hpp"
+
 using stratum::LayerOptions;
 using stratum::LayerOutput;
 using stratum::LayerRequest;
@@ -28,15 +30,9 @@ using stratum::Vec3;
 namespace {
 
 constexpr int thread_count = 4;
-constexpr double pi = 3.141592653589793238462643383279502884;
-
-double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1p-53; }
-
-Vec3<double> random_direction(std::mt19937_64& rng) {
-    const double z = 2 * uniform(rng) - 1, phi = 2 * pi * uniform(rng);
-    const double s = std::sqrt(std::fmax(0.0, 1 - z * z));
-    return {s * std::cos(phi), s * std::sin(phi), z};
-}
+using stratum_test::pi;
+using stratum_test::random_direction;
+using stratum_test::uniform;
 
 // Bitwise equality of two result vectors (NaN-safe, distinguishes -0 from +0).
 bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "test_util.hpp"
+
 using stratum::Beckmann;
 using stratum::Boundary;
 using stratum::InterfaceOperators;
@@ -27,15 +29,9 @@ using stratum::Vec3;
 
 namespace {
 
-constexpr double pi = 3.141592653589793238462643383279502884;
-
-double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1p-53; }
-
-Vec3<double> random_direction(std::mt19937_64& rng) {
-    const double z = 2 * uniform(rng) - 1, phi = 2 * pi * uniform(rng);
-    const double s = std::sqrt(std::fmax(0.0, 1 - z * z));
-    return {s * std::cos(phi), s * std::sin(phi), z};
-}
+using stratum_test::pi;
+using stratum_test::random_direction;
+using stratum_test::uniform;
 
 template <class Real>
 Vec3<Real> dir(double mu, double phi) {

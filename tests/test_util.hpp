@@ -5,10 +5,26 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <random>
 #include <type_traits>
 #include <vector>
 
+#include <stratum/vec3.hpp>
+
 namespace stratum_test {
+
+inline constexpr double pi = 3.141592653589793238462643383279502884;
+
+/// A double uniform on [0, 1) from the top 53 bits (own mapping: independent of the library and of the
+/// standard library's distributions, whose output differs between implementations).
+inline double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1p-53; }
+
+/// A direction uniform on the sphere (own mapping, independent of the library).
+inline stratum::Vec3<double> random_direction(std::mt19937_64& rng) {
+    const double z = 2 * uniform(rng) - 1, phi = 2 * pi * uniform(rng);
+    const double s = std::sqrt(std::fmax(0.0, 1 - z * z));
+    return {s * std::cos(phi), s * std::sin(phi), z};
+}
 
 /// Distance in units in the last place between two finite values of the same type: the number of
 /// representable values strictly between them plus one (0 when equal; +0 and -0 are equal).
