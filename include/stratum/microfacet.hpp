@@ -27,6 +27,18 @@
 
 namespace stratum {
 
+/// Joint masking-shadowing form of the microsurface (Smith, Gaussian surface), used by RoughDielectric;
+/// interface.hpp's header comment defines the three. height_correlated is the default.
+enum class Shadowing { height_correlated, separable, masking_only };
+
+/// Directional-hemispherical reflectance and transmittance (power fractions) of a microsurface for one
+/// incident direction (RoughDielectric::hemispherical_totals).
+template <class Real = double>
+struct HemisphericalTotals {
+    Real reflectance = 0;
+    Real transmittance = 0;
+};
+
 namespace detail {
 
 /// Smith's Lambda of a Gaussian surface as a function of a = cot(theta) / alpha (a >= 0):
