@@ -354,3 +354,23 @@ TEST_CASE("invalid parameters are rejected with messages naming them") {
     const RoughDielectric<double> rd(0.3, 1.0, 1.4);
     CHECK_THROWS_WITH_AS((void)rd.hemispherical_totals(0.5, 1), doctest::Contains("nodes"), std::invalid_argument);
 }
+
+TEST_CASE("delta samples at subnormal cosines are discarded, never inf (found by fuzz_pointwise)") {
+    // Index matched, wi.z = 2e-315: the delta sample's value 1 / |wi.z| overflowed to inf.
+    const double tiny = 2.0722615146145237e-315;
+    for (const double sigma : {0.3, 0.0}) {
+        const RoughDielectric<double> matched(sigma, 0.1, 0.1), smooth_face(0.0, 1.0, 1.5);
+        for (const auto& face : {matched, smooth_face}) {
+            const auto s = face.sample(Vec3<double>{1.0, 0.0, tiny}, 0.0, 0.0, 0.0);
+            CHECK_FALSE(s.valid());
+            CHECK(s.value == 0.0);
+        }
+    }
+    const RoughDielectric<float> f(0.0f, 0.1f, 0.1f);
+    const auto s = f.sample(Vec3<float>{1.0f, 0.0f, 1e-39f}, 0.0f, 0.0f, 0.0f);
+    CHECK_FALSE(s.valid());
+    // The smallest normal cosine still gives a finite weight-1 sample.
+    const auto n = RoughDielectric<double>(0.3, 1.2, 1.2).sample(Vec3<double>{1.0, 0.0, std::numeric_limits<double>::min()}, 0.5, 0.5, 0.5);
+    CHECK(n.valid());
+    CHECK(std::isfinite(n.value));
+}
