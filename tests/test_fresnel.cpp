@@ -102,7 +102,7 @@ TEST_CASE("the Egan-Hilgeman fit is within its stated error for eta in [1, 2] an
     };
     CHECK(worst_on(2.0) <= 0.00161);
     CHECK(worst_on(3.0) <= 0.0159);
-    CHECK(std::fabs(fresnel_diffuse_reflectance_fit(1.3) - 0.444763) < 1e-6);  // physics-notes section 8
+    CHECK(std::fabs(fresnel_diffuse_reflectance_fit(1.3) - 0.444763) < 1e-6);  // docs/physics.md section 8
 }
 
 TEST_CASE("bad eta is rejected with a message naming it") {

@@ -718,7 +718,7 @@ TEST_CASE("renormalized rough operators conserve the hemispherical totals and te
 }
 
 TEST_CASE("coefficient functions stay finite at extreme roughness, grazing angles and normal incidence") {
-    // Hard cases of issue 3: sigma in {1e-4, 1e-3, 2}, cosines 1e-8, 1e-4 and exactly 1, both index ratios.
+    // Hard cases of the rough interface: sigma in {1e-4, 1e-3, 2}, cosines 1e-8, 1e-4 and exactly 1, both index ratios.
     // I_0 is an integral of a non-negative BSDF, so it must be finite and >= 0; |I_k| <= I_0 for every k.
     // At mu = 1 (normal incidence or exit) rho does not depend on phi, so I_k = 0 for k > 0 (to rounding).
     for (double sigma : {1e-4, 1e-3, 2.0})

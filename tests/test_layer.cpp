@@ -1,5 +1,5 @@
 // The layer solver (layer.hpp): independent references, conservation laws, the request shortcuts and the
-// hard cases of issue 4. The photon Monte Carlo comparison is in test_layer_monte_carlo.cpp.
+// hard cases (docs/physics.md section 6). The photon Monte Carlo comparison is in test_layer_monte_carlo.cpp.
 #include <doctest/doctest.h>
 
 #include <stratum/layer.hpp>
@@ -37,7 +37,7 @@ LayerOptions with_ordinates(int m, int modes = 0, bool delta_m = true) {
 
 // Chandrasekhar's H function for isotropic scattering, by fixed-point iteration of
 //   1/H(mu) = sqrt(1 - w) + (w/2) int_0^1 mu' H(mu') / (mu + mu') dmu'
-// on a 400-point half-range Gauss rule (physics-notes section 7). Independent of the solver.
+// on a 400-point half-range Gauss rule (docs/physics.md section 7). Independent of the solver.
 struct ChandrasekharH {
     double w;
     std::vector<double> x, wt, h;
@@ -69,7 +69,7 @@ Vec3<double> direction(double mu, double phi) { return stratum::spherical_direct
 
 TEST_CASE("semi-infinite isotropic slab: plane albedo is 1 - sqrt(1 - w) H(mu0) (Chandrasekhar)") {
     // Black (index-matched) boundaries; at the ordinates the solver is exact up to the discretization error of
-    // the discrete-ordinate method, which physics-notes section 7 measured as ~4e-5 at 16 ordinates.
+    // the discrete-ordinate method, which docs/physics.md section 7 gives as ~4e-5 at 16 ordinates.
     for (double w : {0.5, 0.9, 0.99}) {
         const ChandrasekharH H(w);
         const auto q = stratum::gauss_legendre_half<double>(16);
@@ -351,7 +351,7 @@ TEST_CASE("the BRDF and BTDF integrate to the albedo and transmittance") {
 }
 
 TEST_CASE("at normal incidence the BRDF does not depend on the azimuth, and it is continuous there") {
-    // A beam along the normal has no azimuthal modes k > 0 (physics-notes section 6: normal incidence exact).
+    // A beam along the normal has no azimuthal modes k > 0 (docs/physics.md section 6: normal incidence exact).
     for (bool smooth : {false, true}) {
         const auto slab = Slab<double>::from_transparency(0.9, 0.8, 0.5);
         const auto layer = smooth ? solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0),

@@ -219,7 +219,7 @@ TEST_CASE("a non-absorbing isotropic slab conserves energy: R + T = 1 (Omega = 1
 }
 
 TEST_CASE("Omega = 1 exactly, tau = 2: |R + T - 1| <= 1e-9 for isotropic and g = 0.8 scattering") {
-    // Issue 4's hard case (physics-notes 6 reports a plain eigen-solve off by ~0.2 here). For HG the Legendre series is cut at
+    // The hard case of docs/physics.md section 6 (a plain eigen-solve is off by ~0.2 here). For HG the Legendre series is cut at
     // degree 2M - 1, which the double-Gauss rule integrates exactly, so the discrete phase function conserves.
     for (int m : {4, 16, 32}) {
         const Quadrature<double> q = half_range(m);
@@ -397,7 +397,7 @@ TEST_CASE("semi-infinite isotropic slab: plane albedo = 1 - sqrt(1 - Omega) H(mu
                 worst = std::fmax(worst, std::fabs(column_sum(q, s.reflection, j) - ref));
             }
             MESSAGE("Omega = " << omega << ", M = " << m << ": max |A - A_H| = " << worst);
-            if (m == 16) CHECK(worst <= 1e-4);  // issue 4's requirement
+            if (m == 16) CHECK(worst <= 1e-4);  // the required accuracy at 16 ordinates (docs/physics.md section 7)
             CHECK(worst < previous);            // better as M grows
             previous = worst;
         }
@@ -535,7 +535,7 @@ TEST_CASE("invalid parameters are rejected with std::invalid_argument") {
 
 TEST_CASE("the smallest eigenvalue near Omega = 1 keeps its relative accuracy (K- side factored)") {
     // Reference: the same eigen-solution in long double from the same (double) input matrices.
-    // physics-notes 6 quotes 5e-9 (K- factored) vs 1e-5 (K+ factored) at 16 streams, g = 0.85, 1 - Omega = 1e-6.
+    // docs/physics.md section 6 quotes 5e-9 (K- factored) vs 1e-5 (K+ factored) at 16 streams, g = 0.85, 1 - Omega = 1e-6.
     for (int m : {8, 16}) {
         const Quadrature<double> q = half_range(m);
         const Phase p = henyey_greenstein(0.85, q.nodes, 0, 2 * m - 1);

@@ -2,7 +2,7 @@
 // slab, slab over slab, ...) combined into the operators of the stack, one Fourier mode at a time.
 //
 // Convention. A component is described, for one Fourier mode k and M ordinates, by four M x M row-major
-// operators of the kind of physics-notes section 5 (row n = outgoing ordinate, column m = incoming
+// operators of the kind of docs/physics.md section 5 (row n = outgoing ordinate, column m = incoming
 // ordinate, radiance coefficients in propagation directions, out = L in):
 //   reflection_down   light arriving from above (travelling down), reflected back up, out of the top;
 //   transmission_down light arriving from above, transmitted down, out of the bottom;

@@ -9,7 +9,7 @@
 // Refractive index. eta = n_medium / n_outside (> 1 for skin in air; 1.3 in Jensen and Hery), the same
 // eta as fresnel_diffuse_reflectance. Renderers disagree on this side: Mitsuba passes 1/eta to its F_dr.
 //
-// The model (physics notes, section 8):
+// The model (docs/physics.md section 8):
 //   sigma_t' = sigma_a + sigma_s',  alpha' = sigma_s' / sigma_t',  sigma_tr = sqrt(3 sigma_a sigma_t'),
 //   z_r = 1 / sigma_t',  z_v = z_r (1 + 4A/3),  A = (1 + F_dr) / (1 - F_dr),
 //   d_r = sqrt(r^2 + z_r^2),  d_v = sqrt(r^2 + z_v^2),

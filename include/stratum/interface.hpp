@@ -13,7 +13,7 @@
 //   eta_o^2 / eta_i^2 of Walter et al. 2007, so no further factor appears in these integrals).
 // - Degenerate input (a direction on the horizon, a refraction configuration no facet can produce) gives 0.
 //
-// Microfacet model (Stam 2001 Section 4, corrected as in the project's physics notes; Walter et al. 2007 form):
+// Microfacet model (Stam 2001 Section 4, corrected as in docs/physics.md sections 4 and 9; Walter et al. 2007 form):
 //   brdf  r(i, o) = F(i.h, eta_t/eta_i) D(h) G2(i, o) / (4 |i.z| |o.z|),                  h = normalize(i + o)
 //   btdf  t(i, o) = |i.h| |o.h| / (|i.z| |o.z|) eta_o^2 (1 - F(i.h, eta_o/eta_i)) D(h) G2(i, o)
 //                   / (eta_i (i.h) + eta_o (o.h))^2,                                     h = +-normalize(eta_i i + eta_o o)

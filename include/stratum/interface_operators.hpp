@@ -74,7 +74,7 @@ namespace stratum {
 //    it go to that ordinate (and the ones above), and pointwise interpolation reads only ordinates above the
 //    critical cosine (extrapolating to it), so no light crosses into or out of a totally reflected
 //    direction (between two lossless faces it would be trapped; tests/test_layer_inputs.cpp). A solver that
-//    needs exact beams should keep the unscattered beam analytic (physics-notes section 6).
+//    needs exact beams should keep the unscattered beam analytic (docs/physics.md section 6).
 //
 // Accuracy of the rough operators. The phi integral is controlled by AzimuthalQuadrature (measured: <= 4e-12
 // relative for sigma in {1, 0.3, 0.02} with the default 24 points per panel, ~1e-15 for analytic lobes).

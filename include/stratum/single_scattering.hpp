@@ -29,7 +29,7 @@
 // term is that closed form multiplied by the attenuation of the sampled path,
 //   published_term = sigma_s F p / sigma_tc e^{-sigma_t s_i'} e^{-sigma_t s_o'}   (term()),
 // provided for comparison with their code. Note (tests/test_single_scattering.cpp): averaging the published
-// term over s_o' drawn with pdf sigma_t e^{-sigma_t s}, as the physics notes describe the recipe, gives the
+// term over s_o' drawn with pdf sigma_t e^{-sigma_t s}, as the usual recipe has it (docs/physics.md section 8), gives the
 // flat-boundary answer divided by (2 + G), not the answer; estimate() is the unbiased form of that recipe.
 #pragma once
 

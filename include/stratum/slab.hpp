@@ -1,5 +1,5 @@
 // stratum/slab.hpp -- a bare scattering slab: its reflection and transmission operators per Fourier mode,
-// by the discrete-ordinate method (Stam 2001, Sections 2.3-3; physics-notes sections 6-7).
+// by the discrete-ordinate method (Stam 2001, Sections 2.3-3; docs/physics.md sections 6-7).
 //
 // The slab is homogeneous, of single-scattering albedo Omega and optical thickness tau, with index-
 // matched (black, non-reflecting) boundaries: light crosses its faces unchanged. Interfaces are composed
@@ -16,7 +16,7 @@
 // p_0 = 1, p_k>0 = 0). The (1 + delta_k0)/4 is the azimuthal projection: int cos(k(phi - phi'))
 // cos(k phi') dphi' = pi (1 + delta_k0) cos(k phi), divided by Stam's 4 pi.
 //
-// Symmetric reduction (physics-notes 6). With s = u+ + u-, d = u+ - u-: s'' = (A - B)(A + B) s, and
+// Symmetric reduction (docs/physics.md section 6). With s = u+ + u-, d = u+ - u-: s'' = (A - B)(A + B) s, and
 //     A +- B = -D K(+-) W,   K(+-) = diag(1/w) - Omega_k (P+ +- P-),  D = diag(1/mu), W = diag(w),
 // where P+_nm = p_k(mu_m, mu_n), P-_nm = p_k(-mu_m, mu_n) (both symmetric). With G = diag(w/mu) and
 // C = diag(sqrt(w mu)), C (A - B)(A + B) C^{-1} = S- S+,  S(+-) = G^{1/2} K(+-) G^{1/2} (symmetric).
@@ -41,7 +41,7 @@
 // M^-2 on a Gauss rule when the radiance has grazing structure (Chandrasekhar's H: 4e-5, 1e-5, 3e-6 at
 // M = 16, 32, 64); rules graded towards mu = 0 converge much faster (the published-table tests use them).
 //
-// Output convention (shared with the interface operators, physics-notes 5): M x M row-major matrices,
+// Output convention (shared with the interface operators, docs/physics.md section 5): M x M row-major matrices,
 // row n = outgoing ordinate, column m = incoming ordinate, out = L_k in, with
 // (L_k)_nm = w_m mu_m int_0^{2 pi} rho(mu_m -> mu_n, phi) cos(k phi) dphi. For the bare slab:
 //   reflection   R_k: light entering through the top (travelling down), leaving back up through the top;
