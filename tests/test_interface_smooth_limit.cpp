@@ -280,11 +280,13 @@ TEST_CASE("smooth limit: albedo, reflectance and transmittance are the Fresnel v
                 CHECK(rd.hemispherical_transmittance(mu) == sd.transmittance(mu));
             }
         }
-    // float: the same, in float.
+    // float: the same formula, but to 1 ulp, not bit for bit: clang's default -ffp-contract=on may fuse a
+    // multiply-add when it folds one inlined copy of fresnel_dielectric and not the other (clang 14 -O2 gives
+    // 0x1.e84716p-1 and 0x1.e84718p-1 for the transmittance at -0.9; g++ gives the same bits for both).
     const RoughDielectric<float> f(0.0f, 1.0f, 1.5f);
     const SmoothDielectric<float> sf(1.0f, 1.5f);
-    CHECK(f.hemispherical_totals(0.5f).reflectance == sf.reflectance(0.5f));
-    CHECK(f.hemispherical_totals(-0.9f).transmittance == sf.transmittance(-0.9f));
+    CHECK(stratum_test::ulp_distance(f.hemispherical_totals(0.5f).reflectance, sf.reflectance(0.5f)) <= 1);
+    CHECK(stratum_test::ulp_distance(f.hemispherical_totals(-0.9f).transmittance, sf.transmittance(-0.9f)) <= 1);
 }
 
 TEST_CASE("every sigma >= 0 gives finite, non-negative values (double: 10^-k, k = 0..320, and extremes)") {
