@@ -163,30 +163,6 @@ struct RoughKernel {
     }
 };
 
-// Weights of the p-point Lagrange interpolation at x from the p consecutive nodes nearest to x among
-// nodes[lowest..] (nodes ascending, p <= size - lowest): writes the first node's index to `first` and the
-// weights to w[0..p-1].
-template <class Real>
-void local_lagrange(const std::vector<Real>& nodes, int p, Real x, int& first, Real* w, int lowest = 0) noexcept {
-    const int m = static_cast<int>(nodes.size());
-    if (p > m - lowest) p = m - lowest;
-    int j = lowest;  // first node > x
-    while (j < m && nodes[static_cast<std::size_t>(j)] <= x) ++j;
-    first = j - p / 2;
-    if (first < lowest) first = lowest;
-    if (first > m - p) first = m - p;
-    for (int a = 0; a < p; ++a) {
-        const Real xa = nodes[static_cast<std::size_t>(first + a)];
-        Real l = 1;
-        for (int b = 0; b < p; ++b) {
-            if (b == a) continue;
-            const Real xb = nodes[static_cast<std::size_t>(first + b)];
-            l *= (x - xb) / (xa - xb);
-        }
-        w[a] = l;
-    }
-}
-
 }  // namespace detail
 
 /// The Fourier-mode operators R_12, T_12, R_21, T_21 of a dielectric interface on given ordinates, and
@@ -349,7 +325,7 @@ public:
                     if (!(mu_t > 0)) continue;  // total internal reflection: nothing is transmitted
                     const Real x = std::fmin(std::fmax(mu_t, ordinates.nodes[static_cast<std::size_t>(lowest)]),
                                              ordinates.nodes.back());
-                    detail::local_lagrange(ordinates.nodes, p, x, first, w.data(), lowest);
+                    first = detail::lagrange_weights(ordinates.nodes.data(), m, x, p, w.data(), lowest).first;
                     const Real power = interface.transmittance(in_sign * mu) * weight(j);
                     for (int a = 0; a < p; ++a)
                         for (int k = 0; k < modes; ++k) t(k, first + a, j) = power * w[static_cast<std::size_t>(a)] / weight(first + a);
@@ -359,7 +335,7 @@ public:
                     const Real mu_i = std::fabs(interface.transmitted_cosine(-in_sign * mu));
                     if (!(mu_i > 0)) continue;  // no incident direction reaches mu_j
                     const Real factor = interface.radiance_transmittance(in_sign * mu_i);
-                    detail::local_lagrange(ordinates.nodes, p, mu_i, first, w.data(), lowest);
+                    first = detail::lagrange_weights(ordinates.nodes.data(), m, mu_i, p, w.data(), lowest).first;
                     for (int a = 0; a < p; ++a)
                         for (int k = 0; k < modes; ++k) t(k, j, first + a) = factor * w[static_cast<std::size_t>(a)];
                 }
@@ -447,8 +423,7 @@ private:
                     const Real e = eta_i / eta_o;
                     const Real image = lobe == 0 ? mu : std::sqrt(std::fmax(Real(0), 1 - e * e * (1 - mu) * (1 + mu)));
                     const Real x = std::fmin(std::fmax(image, ordinates.nodes.front()), ordinates.nodes.back());
-                    int first = 0;
-                    detail::local_lagrange(ordinates.nodes, 2, x, first, split);
+                    const int first = detail::lagrange_weights(ordinates.nodes.data(), m_count, x, 2, split).first;
                     // The lobe's own azimuthal shape at its image, I_k / I_0 (a delta in phi would not decay
                     // with k and would defeat the adaptive mode count of the layer solver).
                     shape.resize(static_cast<std::size_t>(modes_));

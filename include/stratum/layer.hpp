@@ -7,7 +7,7 @@
 // matched. Directions follow vec3.hpp: wi towards the light, wo towards the viewer, both pointing away
 // from the surface; light arrives from above (wi.z > 0).
 //
-// Method (physics-notes sections 5-6). Per Fourier mode k and on M half-range ordinates, every component
+// Method (docs/physics.md sections 5-6). Per Fourier mode k and on M half-range ordinates, every component
 // is a set of M x M operators mapping incoming to outgoing radiance coefficients (adding.hpp): the
 // interfaces' R_12, T_12, R_21, T_21 (interface_operators.hpp) and the bare slab's R, T (slab.hpp). With
 // S the reflection of everything below the top interface seen from inside the layer (slab + bottom
@@ -19,7 +19,7 @@
 // so per mode the solver keeps Q_b = S (I - R_21 S)^{-1} and Q_e = (I - R_s R_23)^{-1} T_s (I - R_21 S)^{-1}.
 // Only the internal field lives on ordinates. For a rough top the incident direction enters through
 // the top's transmission coefficients evaluated at the true mu_0 and the outgoing one through t_21 at the
-// true mu (no interpolation; physics-notes section 6):
+// true mu (no interpolation; docs/physics.md section 6):
 //     c_{k,m}   = (2 - delta_k0) / (2 pi) I^{t12}_k(mu_0 -> mu_m)
 //     f_s(wi, wo) = sum_k cos(k dphi) sum_m w_m mu_m I^{t21}_k(mu_m -> mu) (Q_b c_k)_m,
 // with dphi the azimuth between the incident and outgoing PROPAGATION directions (-wi and wo).
@@ -42,8 +42,10 @@
 // incident flux, ambient as reflected radiance per unit incident sky radiance.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -214,17 +216,18 @@ struct MuTable {
     }
     Real operator()(Real mu) const noexcept {
         const int n = static_cast<int>(values.size()) - 1;
-        const Real x = std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))) * Real(n);
-        const int first = std::min(std::max(static_cast<int>(x) - 1, 0), n - 3);
+        const Real x = std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))) * Real(n);  // in units of 1 / N
+        Real w[4];
+        const LagrangeWindow window = lagrange_weights(Points{}, n + 1, x, 4, w);
         Real sum = 0;
-        for (int a = 0; a < 4; ++a) {
-            Real l = 1;
-            for (int b = 0; b < 4; ++b)
-                if (b != a) l *= (x - Real(first + b)) / Real(a - b);
-            sum += l * values[static_cast<std::size_t>(first + a)];
-        }
+        for (int a = 0; a < 4; ++a) sum += w[a] * values[static_cast<std::size_t>(window.first + a)];
         return sum;
     }
+
+private:
+    struct Points {  // the table's points t_j = j / N, in units of 1 / N
+        Real operator[](std::size_t j) const noexcept { return static_cast<Real>(j); }
+    };
 };
 
 /// Largest entry of a slab's diffuse operators: R, and T without its unscattered diagonal e^{-tau/mu}.
@@ -239,6 +242,148 @@ Real diffuse_size(const ComponentOperators<Real>& c, const std::vector<Real>& mu
                                        std::fabs(c.transmission_down[i * m + j] - direct)));
         }
     return x;
+}
+
+// ---- The steps of LayeredSurface::solve that need nothing of the solved layer ----
+
+/// Rejects inconsistent input (solve_stack's contract) through fail_invalid_argument: counts, the tolerance, the
+/// number of interior faces, indices that disagree across a slab, incidence cosines outside (0, 1].
+template <class Real>
+void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                    const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                    const LayerOptions& options, const LayerRequest<Real>& request) {
+    require_count("options.ordinates", options.ordinates, 1);
+    require_count("options.modes", options.modes, 0);
+    require_count("request.max_modes", request.max_modes, 0);
+    require_count("slabs.size()", static_cast<int>(slabs.size()), 1);
+    if (!(request.tolerance >= 0 && request.tolerance < 1))
+        throw_out_of_range("request.tolerance", request.tolerance, "[0, 1)");
+    if (interior.size() + 1 != slabs.size())
+        fail_invalid_argument("stratum: solve_stack needs interior.size() == slabs.size() - 1, got " +
+                              std::to_string(interior.size()) + " and " + std::to_string(slabs.size()));
+    Real above = top.eta_below();
+    for (std::size_t i = 0; i <= interior.size(); ++i) {
+        const Real below = i < interior.size() ? interior[i].eta_above() : bottom.eta_above();
+        if (below != above)
+            fail_invalid_argument("stratum: boundary indices disagree around slab " + std::to_string(i) + ": " +
+                                  format_value(above) + " above it, " + format_value(below) + " below it");
+        if (i < interior.size()) above = interior[i].eta_below();
+    }
+    for (std::size_t j = 0; j < request.incidence.size(); ++j)
+        require_closed(("request.incidence[" + std::to_string(j) + "]").c_str(), request.incidence[j],
+                       std::nextafter(Real(0), Real(1)), Real(1));
+}
+
+/// The Fourier modes to solve: LayerOptions::modes (0: 2M, as many as 2M Legendre moments support) capped by
+/// LayerRequest::max_modes; mode 0 alone for the ambient term alone; none for the surface reflection alone.
+template <class Real>
+int mode_count(const LayerOptions& options, const LayerRequest<Real>& request) noexcept {
+    int modes = options.modes > 0 ? options.modes : 2 * options.ordinates;
+    if (request.max_modes > 0) modes = std::min(modes, request.max_modes);
+    const bool solved = includes(request.outputs, LayerOutput::subsurface_reflection) ||
+                        includes(request.outputs, LayerOutput::transmission) ||
+                        includes(request.outputs, LayerOutput::operators);
+    if (!solved) modes = includes(request.outputs, LayerOutput::ambient) ? 1 : 0;
+    return modes;
+}
+
+/// Mode k of an operator family as a matrix.
+template <class Real>
+Matrix<Real> mode_matrix(const FourierOperators<Real>& f, int k) {
+    const std::size_t m = static_cast<std::size_t>(f.size);
+    Matrix<Real> a(m, m);
+    std::copy(f.mode(k), f.mode(k) + m * m, a.data.begin());
+    return a;
+}
+
+/// Semi-infinite shortcut (LayerRequest::tolerance, when transmission is not requested): the diffuse field decays
+/// into the slab no faster than e^{-lambda_min tau} (lambda_min: the smallest mode-0 eigenvalue), which is slower
+/// than the beam's e^{-tau}; so a slab with e^{-lambda_min tau} < tolerance (not e^{-tau} < tolerance) is solved
+/// as semi-infinite.
+template <class Real>
+void make_semi_infinite_if_opaque(SlabModes<Real>& p, const Quadrature<Real>& q, Real tolerance) {
+    const Real tau = p.slab.optical_thickness();
+    if (!std::isfinite(tau) || !(p.slab.one_minus_albedo() > 0)) return;
+    const auto es = slab_eigensystem(p.slab.one_minus_albedo(), q.nodes, q.weights, p.phase.same_k(0),
+                                     p.phase.opposite_k(0), 0);
+    Real lambda_min = std::numeric_limits<Real>::infinity();
+    for (Real l : es.lambda) lambda_min = std::fmin(lambda_min, l);
+    if (std::exp(-lambda_min * tau) < tolerance)
+        p.slab = Slab<Real>::from_one_minus_albedo(p.slab.one_minus_albedo(), p.slab.g(),
+                                                   std::numeric_limits<Real>::infinity());
+}
+
+/// Everything below the top face, ready for the per-mode adding (stack_mode).
+template <class Real>
+struct PreparedStack {
+    std::vector<SlabModes<Real>> slabs;              // delta-M scaled, with their phase matrices (prepare_slab)
+    std::vector<InterfaceOperators<Real>> interior;  // the interior faces' operators on the ordinates
+    bool any_rough = false;                          // a rough boundary anywhere, top and bottom included
+};
+
+/// Prepares the slabs (delta-M, phase matrices, the semi-infinite shortcut) and the interior faces' operators.
+/// Interior faces of a stack: the adding equations multiply a face's energy error by the bounces between the faces
+/// around it, so under SpecularTransmission::automatic a smooth interior face is flux_conserving both ways (exact
+/// energy per ordinate). Pointwise out of the denser medium created up to 26% of the incident energy at M = 4 and
+/// 2% at M = 16 (thin slabs between smooth faces; tests/test_layer_inputs.cpp). An explicit choice is kept
+/// (README, known limitations).
+template <class Real>
+PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                  const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                                  const Quadrature<Real>& q, int modes, const LayerOptions& options,
+                                  const LayerRequest<Real>& request) {
+    PreparedStack<Real> stack;
+    LayerOptions interior_options = options;
+    if (interior_options.specular_transmission == SpecularTransmission::automatic)
+        interior_options.specular_transmission = SpecularTransmission::flux_conserving;
+    stack.any_rough = top.rough() || bottom.rough();
+    for (const Boundary<Real>& b : interior) {
+        stack.interior.push_back(b.operators(q, modes, interior_options));
+        stack.any_rough = stack.any_rough || b.rough();
+    }
+    const bool shortcut = request.tolerance > 0 && slabs.size() == 1 &&
+                          !includes(request.outputs, LayerOutput::transmission) &&
+                          !includes(request.outputs, LayerOutput::operators);
+    for (const Slab<Real>& slab : slabs) {
+        stack.slabs.push_back(prepare_slab(slab, q, modes, options.delta_m, slab.optical_thickness()));
+        if (shortcut) make_semi_infinite_if_opaque(stack.slabs.back(), q, request.tolerance);
+    }
+    return stack;
+}
+
+/// Mode k of a prepared slab (slab.hpp). A phase function too peaked for the ordinates (|g| near 1 without delta-M,
+/// or any g < 0 near -1, whose backward peak delta-M cannot remove) has a truncated expansion that is not admissible
+/// on them: the slab solver then regularizes its aliased part (regularize_aliased_phase = true), which keeps the
+/// results finite and energy-conserving. Admissible phase functions are solved as without it.
+template <class Real>
+ComponentOperators<Real> slab_mode(const SlabModes<Real>& p, const Quadrature<Real>& q, int k) {
+    return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
+}
+
+/// Mode k of everything below the top face, by the adding equations (adding.hpp).
+template <class Real>
+struct StackMode {
+    ComponentOperators<Real> middle;  // the slabs and the interior faces
+    ComponentOperators<Real> bottom;  // the bottom face
+    ComponentOperators<Real> lower;   // middle + bottom: S = lower.reflection_down
+    Real slab_size = 0;               // the largest diffuse_size of the slabs (the mode cutoff between specular faces)
+};
+
+template <class Real>
+StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOperators<Real>& bottom,
+                           const Quadrature<Real>& q, int k) {
+    StackMode<Real> s;
+    s.middle = slab_mode(stack.slabs[0], q, k);
+    s.slab_size = diffuse_size(s.middle, q.nodes, stack.slabs[0].slab.optical_thickness());
+    for (std::size_t i = 0; i < stack.interior.size(); ++i) {
+        s.middle = add_components(s.middle, interface_component(stack.interior[i], k));
+        const ComponentOperators<Real> next = slab_mode(stack.slabs[i + 1], q, k);
+        s.slab_size = std::fmax(s.slab_size, diffuse_size(next, q.nodes, stack.slabs[i + 1].slab.optical_thickness()));
+        s.middle = add_components(s.middle, next);
+    }
+    s.bottom = interface_component(bottom, k);
+    s.lower = add_components(s.middle, s.bottom);
+    return s;
 }
 
 }  // namespace detail
@@ -288,7 +433,7 @@ public:
             return Real(0);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
-        return scale * exit_sum(wi, wo, *top_ops_, top_, false, field(mu_i, false, ws), ws);
+        return scale * exit_sum(wi, wo, top_face(), field(mu_i, false, ws), ws);
     }
     Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return subsurface_brdf(wi, wo, ws); }
 
@@ -299,7 +444,7 @@ public:
             return Real(0);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
-        return scale * exit_sum(wi, wo, *bottom_ops_, bottom_, true, field(mu_i, true, ws), ws);
+        return scale * exit_sum(wi, wo, bottom_face(), field(mu_i, true, ws), ws);
     }
     Real btdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return btdf(wi, wo, ws); }
 
@@ -351,7 +496,7 @@ public:
         const std::size_t m = q_.size();
         ws.c.assign(m, Real(0));
         for (std::size_t i = 0; i < m; ++i) ws.c[i] = ambient_field_[i];
-        return exit_value(std::fmin(wo.z, Real(1)), *top_ops_, top_, false, 0, ws.c.data(), ws);
+        return exit_value(std::fmin(wo.z, Real(1)), top_face(), 0, ws.c.data(), ws);
     }
     Real ambient(Vec3<Real> wo) const { Workspace ws; return ambient(wo, ws); }
 
@@ -367,7 +512,74 @@ private:
 
     LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
 
+    // The steps of solve() that fill the layer (defined after it, at the end of this file).
+    void solve_modes(const detail::PreparedStack<Real>& stack, int modes, Real tolerance);
+    void add_field_operators(int k, const detail::StackMode<Real>& below);
+    Real coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
+    void solve_ambient();
+    void separate_direct_beam(Real tau);
+    void precompute_incidences();
+
     static constexpr Real pi() noexcept { return Real(3.141592653589793238462643383279502884L); }
+
+    // Which way light crosses a face: into the layer from outside, or out of it.
+    enum class Crossing { entering, leaving };
+
+    // One boundary seen from inside the layer: what depends on the face that light crosses. Outside is medium 1
+    // above the top and medium 3 below the bottom; signed cosines follow interface.hpp (> 0: arriving from above).
+    struct Face {
+        const LayeredSurface& layer;
+        bool bottom;  // false: the top (1 | 2); true: the bottom (2 | 3)
+
+        const Boundary<Real>& boundary() const noexcept { return bottom ? layer.bottom_ : layer.top_; }
+        const InterfaceOperators<Real>& ops() const noexcept { return bottom ? *layer.bottom_ops_ : *layer.top_ops_; }
+        bool rough() const noexcept { return boundary().rough(); }
+        Real eta_inside() const noexcept { return bottom ? boundary().eta_above() : boundary().eta_below(); }
+        Real eta_outside() const noexcept { return bottom ? boundary().eta_below() : boundary().eta_above(); }
+        // The side that light crossing this way arrives from (the operators' Incidence).
+        Incidence incidence(Crossing c) const noexcept {
+            return (c == Crossing::entering) != bottom ? Incidence::from_above : Incidence::from_below;
+        }
+        // The signed cosine of light arriving at the face with |cosine| mu from outside, or from inside.
+        Real from_outside(Real mu) const noexcept { return bottom ? -mu : mu; }
+        Real from_inside(Real mu) const noexcept { return bottom ? mu : -mu; }
+        // Snell: the |cosine| inside the layer of the ray crossing with |cosine| mu outside (0 if none does).
+        Real internal_cosine(Real mu) const noexcept {
+            return std::fabs(boundary().smooth_interface().transmitted_cosine(from_outside(mu)));
+        }
+        // The critical cosine inside the layer (0 if none): ordinates below it are totally reflected.
+        Real critical_cosine() const noexcept {
+            const Real n_in = eta_inside(), n_out = eta_outside();
+            if (!(n_out < n_in)) return Real(0);
+            const Real r = n_out / n_in;
+            return std::sqrt((Real(1) - r) * (Real(1) + r));
+        }
+        // Directional-hemispherical transmittance into the layer of light from outside at |cosine| mu: for a
+        // rough face from its table (Tables) above the first table interval, exactly below it.
+        Real transmittance_from_outside(Real mu) const {
+            if (!rough() || mu < layer.tables().grazing) return boundary().hemispherical_transmittance(from_outside(mu));
+            return non_negative(bottom ? layer.tables().bottom_in(mu) : layer.tables().top_in(mu));
+        }
+        // tau(mu_m): the transmittance out of the layer of light from inside at each ordinate (the renormalized
+        // rough operators computed these totals already).
+        std::vector<Real> transmittance_at_ordinates() const {
+            const std::vector<Real>& nodes = layer.q_.nodes;
+            const auto& totals = ops().ordinate_totals(incidence(Crossing::leaving));
+            std::vector<Real> t(nodes.size());
+            for (std::size_t i = 0; i < nodes.size(); ++i)
+                t[i] = totals.size() == nodes.size() ? totals[i].transmittance
+                                                     : boundary().hemispherical_transmittance(from_inside(nodes[i]));
+            return t;
+        }
+        // I_k (k < ops().modes()) of a rough face's transmission between |cosine| mu outside and mu_inside inside,
+        // for light crossing the given way.
+        void transmission(Crossing c, Real mu, Real mu_inside, Real* out) const noexcept {
+            if (c == Crossing::entering) ops().coefficients(incidence(c), true, mu, mu_inside, out);
+            else ops().coefficients(incidence(c), true, mu_inside, mu, out);
+        }
+    };
+    Face top_face() const noexcept { return Face{*this, false}; }
+    Face bottom_face() const noexcept { return Face{*this, true}; }
 
     // The internal field (K blocks of M) for incidence mu_i: Q_b c_k (reflection) or Q_e c_k (transmission).
     const Real* field(Real mu_i, bool transmitted, Workspace& ws) const {
@@ -398,39 +610,30 @@ private:
     // beam at the Snell cosine, spread over the nearest ordinates inside the top's escape cone with
     // Lagrange weights (they sum to 1, so the flux is conserved; exact when the Snell cosine is an ordinate).
     void entry(Real mu_i, Workspace& ws) const {
+        const Face top = top_face();
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.c.assign(kk * m, Real(0));
-        const Real flux = !top_.rough() || mu_i < tables().grazing ? top_.hemispherical_transmittance(mu_i)
-                                                                    : non_negative(tables().top_in(mu_i));
+        const Real flux = top.transmittance_from_outside(mu_i);
         if (!(flux > 0)) return;
         Real specular_share = 1;
-        if (top_.rough()) {
-            ws.in.resize(static_cast<std::size_t>(top_ops_->modes()));
+        if (top.rough()) {
+            ws.in.resize(static_cast<std::size_t>(top.ops().modes()));
             Real gauss = 0;
             for (std::size_t i = 0; i < m; ++i) {
-                top_ops_->t12_coefficients(mu_i, q_.nodes[i], ws.in.data());
+                top.transmission(Crossing::entering, mu_i, q_.nodes[i], ws.in.data());
                 gauss += q_.weights[i] * q_.nodes[i] * ws.in[0];
                 for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = ws.in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
             }
-            // Blend: alpha = min(r, 1/r), r = gauss / flux, of the rescaled lobe (alpha flux / gauss = min(1,
-            // (flux/gauss)^2)) and 1 - alpha of the specular spread: both carry the exact flux, the lobe wins
-            // where the ordinates resolve it, and the result is continuous in every parameter.
-            const Real r = gauss / flux;
-            const Real lobe = r >= 1 ? Real(1) / (r * r) : Real(1);
-            for (Real& x : ws.c) x *= lobe;
-            specular_share = r >= 1 ? Real(1) - Real(1) / r : Real(1) - r;
+            specular_share = blend(gauss, flux, ws.c);
             if (!(specular_share > 0)) return;
         }
-        const Real mu_t = std::fabs(top_.smooth_interface().transmitted_cosine(mu_i));
+        const Real mu_t = top.internal_cosine(mu_i);
         if (!(mu_t > 0)) return;
-        // Azimuthal shape: a delta in phi for a specular top; a rough top's lobe keeps its own shape I_k / I_0
-        // at the image (so that higher modes decay as the lobe's do).
-        shape(mu_i, mu_t, top_.rough() ? &*top_ops_ : nullptr, Incidence::from_above, ws);
         // 4 points from 8 ordinates on (accurate: the photon Monte Carlo prefers it to a linear spread by 0.002
         // at 16 ordinates); with fewer ordinates the stencil spans most of [0, 1] and its negative weights can
         // create energy, so the spread is linear there, clamped to the stencil: non-negative weights.
         const bool few = q_.size() < 8;
-        lagrange(few ? std::fmin(mu_t, q_.nodes.back()) : mu_t, critical_cosine(top_, false), few ? 2 : 4, ws);
+        specular_spread(top, Crossing::entering, mu_i, mu_t, few ? std::fmin(mu_t, q_.nodes.back()) : mu_t, few ? 2 : 4, ws);
         for (std::size_t i = 0; i < m; ++i) {
             const Real base = specular_share * flux * ws.in[i] / (q_.weights[i] * q_.nodes[i]);
             Real pole = 1;  // pole_factor(mu_t, mu_m)^k
@@ -440,52 +643,47 @@ private:
         }
     }
 
-    // ws.in[0..M-1] = weights of p-point Lagrange interpolation at x from the ordinates >= lo nearest to x (lo:
-    // the critical cosine of the boundary the light crosses; ordinates below it are totally reflected and hold
-    // trapped light that must not leak into the interpolation). The weights sum to 1.
-    void lagrange(Real x, Real lo, int p, Workspace& ws) const {
-        const int m = static_cast<int>(q_.size());
-        ws.in.assign(q_.size(), Real(0));
-        int first_valid = 0;
-        while (first_valid < m - 1 && q_.nodes[static_cast<std::size_t>(first_valid)] < lo) ++first_valid;
-        const int count = m - first_valid;
-        p = std::min(p, count);
-        int j = first_valid;  // first node > x
-        while (j < m && q_.nodes[static_cast<std::size_t>(j)] <= x) ++j;
-        int first = std::max(first_valid, std::min(j - p / 2, m - p));
-        auto node = [&](int i) { return q_.nodes[static_cast<std::size_t>(i)]; };
-        for (int a = 0; a < p; ++a) {
-            Real l = 1;
-            for (int b = 0; b < p; ++b)
-                if (b != a) l *= (x - node(first + b)) / (node(first + a) - node(first + b));
-            ws.in[static_cast<std::size_t>(first + a)] = l;
-        }
+    // The blend of a rough face's lobe with the specular spread, used where the lobe meets the ordinates (entry,
+    // exit_weights). `lobe` holds the lobe on the ordinates, whose Gauss sum is `gauss`; `exact` is its true value.
+    // With r = gauss / exact, the share alpha = min(r, 1/r) goes to the lobe rescaled to the exact value (a factor
+    // alpha exact / gauss = min(1, 1/r^2), applied to `lobe` here) and 1 - alpha, returned, to the specular spread:
+    // both carry the exact value, the lobe wins where the ordinates resolve it, and the result is continuous in
+    // every parameter.
+    static Real blend(Real gauss, Real exact, std::vector<Real>& lobe) noexcept {
+        const Real r = gauss / exact;
+        const Real scale = r >= 1 ? Real(1) / (r * r) : Real(1);
+        for (Real& x : lobe) x *= scale;
+        return r >= 1 ? Real(1) - Real(1) / r : Real(1) - r;
     }
 
-    // ws.shape[k] = I_k / I_0 of a rough boundary's transmission lobe from mu_in to mu_out for light arriving
-    // from `side` (ops == nullptr: specular, a delta in phi, shape 1 for every k).
-    void shape(Real mu_in, Real mu_out, const InterfaceOperators<Real>* ops, Incidence side, Workspace& ws) const {
+    // The specular part of a face's coupling between the internal cosine mu_t and the ordinates, for light crossing
+    // the given way at |cosine| mu outside (the caller scales it and applies pole_factor):
+    //  - ws.in[m]: the weights of p-point Lagrange interpolation (p <= 4) at x from the ordinates inside the face's
+    //    escape cone, 0 elsewhere (below its critical cosine the ordinates are totally reflected and hold trapped
+    //    light that must not leak into the interpolation); they sum to 1;
+    //  - ws.shape[k]: the azimuthal shape, I_k / I_0 of a rough face's lobe between mu and mu_t (so that its higher
+    //    modes decay as the lobe's do), or 1 for every k through a specular face (a delta in phi).
+    void specular_spread(const Face& face, Crossing c, Real mu, Real mu_t, Real x, int p, Workspace& ws) const {
         const std::size_t kk = static_cast<std::size_t>(modes_);
         ws.shape.assign(kk, Real(1));
-        if (ops == nullptr) return;
-        ws.in.resize(static_cast<std::size_t>(ops->modes()));
-        ops->coefficients(side, true, mu_in, mu_out, ws.in.data());
-        const Real i0 = ws.in[0];
-        for (std::size_t k = 0; k < kk; ++k) ws.shape[k] = i0 > 0 ? ws.in[k] / i0 : Real(k == 0);
+        if (face.rough()) {
+            ws.in.resize(static_cast<std::size_t>(face.ops().modes()));
+            face.transmission(c, mu, mu_t, ws.in.data());
+            const Real i0 = ws.in[0];
+            for (std::size_t k = 0; k < kk; ++k) ws.shape[k] = i0 > 0 ? ws.in[k] / i0 : Real(k == 0);
+        }
+        const int m = static_cast<int>(q_.size());
+        const Real critical = face.critical_cosine();
+        int lowest = 0;  // the first ordinate inside the escape cone (the last one at least)
+        while (lowest < m - 1 && q_.nodes[static_cast<std::size_t>(lowest)] < critical) ++lowest;
+        Real w[4];
+        const detail::LagrangeWindow window = detail::lagrange_weights(q_.nodes.data(), m, x, p, w, lowest);
+        ws.in.assign(q_.size(), Real(0));
+        for (int a = 0; a < window.points; ++a) ws.in[static_cast<std::size_t>(window.first + a)] = w[a];
     }
 
-    // The critical cosine inside the layer for light leaving through `boundary` (0 if none).
-    static Real critical_cosine(const Boundary<Real>& boundary, bool bottom) noexcept {
-        const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
-        const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
-        if (!(n_out < n_in)) return Real(0);
-        const Real r = n_out / n_in;
-        return std::sqrt((Real(1) - r) * (Real(1) + r));
-    }
-
-    // Radiance leaving through `boundary` towards wo from the internal field, summed over modes.
-    Real exit_sum(Vec3<Real> wi, Vec3<Real> wo, const InterfaceOperators<Real>& ops, const Boundary<Real>& boundary,
-                  bool bottom, const Real* fld, Workspace& ws) const {
+    // Radiance leaving through `face` towards wo from the internal field, summed over modes.
+    Real exit_sum(Vec3<Real> wi, Vec3<Real> wo, const Face& face, const Real* fld, Workspace& ws) const {
         // Azimuth between the propagation directions -wi and wo: cos(dphi) = -(wi_t . wo_t) / (|wi_t| |wo_t|),
         // from the normalized tangential parts (hypot: no overflow or underflow for finite non-unit vectors, whose
         // squares would give inf / inf or 0 / 0) and clamped to [-1, 1] so that the Chebyshev recurrence stays bounded.
@@ -495,7 +693,7 @@ private:
             pole ? Real(1)
                  : std::fmin(std::fmax(-((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro)), Real(-1)), Real(1));
         const Real mu_o = std::fmin(std::fabs(wo.z), Real(1));
-        exit_weights(mu_o, ops, boundary, bottom, ws);
+        exit_weights(mu_o, face, ws);
         const std::size_t m = q_.size();
         Real sum = 0, c_prev = 1, c_k = 1;  // cos(k dphi) by the Chebyshev recurrence
         // At the pole (wi or wo along the normal) the azimuth is undefined and only mode 0 survives.
@@ -513,9 +711,8 @@ private:
     }
 
     // The value of one mode at outgoing cosine mu_o (used for the mode-0 ambient term).
-    Real exit_value(Real mu_o, const InterfaceOperators<Real>& ops, const Boundary<Real>& boundary, bool bottom, int k,
-                    const Real* fld, Workspace& ws) const {
-        exit_weights(mu_o, ops, boundary, bottom, ws);
+    Real exit_value(Real mu_o, const Face& face, int k, const Real* fld, Workspace& ws) const {
+        exit_weights(mu_o, face, ws);
         const std::size_t m = q_.size();
         Real s = 0;
         for (std::size_t i = 0; i < m; ++i) s += ws.out[static_cast<std::size_t>(k) * m + i] * fld[i];
@@ -527,45 +724,34 @@ private:
     // by reciprocity (t_ij / n_j^2 = t_ji / n_i^2 with the arguments swapped), sum_m w_m mu_m I^t_0(mu_m -> mu_o)
     // -> (n_out / n_in)^2 T(mu_o), with T the transmittance of light arriving from outside at mu_o.
     // Specular: (radiance transmittance) x local Lagrange weights at the internal Snell cosine mu'.
-    void exit_weights(Real mu_o, const InterfaceOperators<Real>& ops, const Boundary<Real>& boundary, bool bottom,
-                      Workspace& ws) const {
+    void exit_weights(Real mu_o, const Face& face, Workspace& ws) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.out.assign(kk * m, Real(0));
-        const SmoothDielectric<Real>& s = boundary.smooth_interface();
-        const Real outside = bottom ? -mu_o : mu_o;  // cosine of the outgoing ray seen from its own side
-        const Real mu_t = std::fabs(s.transmitted_cosine(outside));  // the internal direction, ray reversed
-        Real specular = mu_t > 0 ? s.radiance_transmittance(bottom ? mu_t : -mu_t) : Real(0);
-        if (boundary.rough()) {
-            const Real n_in = bottom ? boundary.eta_above() : boundary.eta_below();
-            const Real n_out = bottom ? boundary.eta_below() : boundary.eta_above();
-            const Real t_outside = mu_o < tables().grazing ? boundary.hemispherical_transmittance(outside)
-                                   : non_negative(bottom ? tables().bottom_in(mu_o) : tables().top_in(mu_o));
-            const Real expected = (n_out / n_in) * (n_out / n_in) * t_outside;
+        const Real mu_t = face.internal_cosine(mu_o);  // the internal direction, ray reversed
+        Real specular =
+            mu_t > 0 ? face.boundary().smooth_interface().radiance_transmittance(face.from_inside(mu_t)) : Real(0);
+        if (face.rough()) {
+            const Real t_outside = face.transmittance_from_outside(mu_o);
+            const Real n = face.eta_outside() / face.eta_inside();
+            const Real expected = n * n * t_outside;
             if (!(expected > 0)) return;
-            // The reciprocity behind `expected` needs a reciprocal BTDF: with masking-only shadowing the exit
-            // weights are used as they are (tests/test_layer_monte_carlo.cpp measured both against a photon
-            // Monte Carlo).
-            const bool reciprocal = boundary.rough_interface()->shadowing() != Shadowing::masking_only;
-            ws.in.resize(static_cast<std::size_t>(ops.modes()));
+            ws.in.resize(static_cast<std::size_t>(face.ops().modes()));
             Real gauss = 0;
             for (std::size_t i = 0; i < m; ++i) {
-                if (bottom) ops.t12_coefficients(q_.nodes[i], mu_o, ws.in.data());  // layer (above the bottom) -> medium 3
-                else ops.t21_coefficients(q_.nodes[i], mu_o, ws.in.data());         // layer (below the top) -> medium 1
+                face.transmission(Crossing::leaving, mu_o, q_.nodes[i], ws.in.data());
                 const Real wm = q_.weights[i] * q_.nodes[i];
                 gauss += wm * ws.in[0];
                 for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] = wm * ws.in[k];
             }
-            // The same continuous blend as in entry(): the rescaled lobe where the ordinates resolve it,
-            // otherwise the interpolated internal radiance at the Snell direction times `expected`.
-            if (!reciprocal) return;
-            const Real r = gauss / expected;
-            const Real lobe = r >= 1 ? Real(1) / (r * r) : Real(1);
-            for (Real& x : ws.out) x *= lobe;
-            specular = expected * (r >= 1 ? Real(1) - Real(1) / r : Real(1) - r);
+            // The reciprocity behind `expected` needs a reciprocal BTDF: with masking-only shadowing the exit
+            // weights are used as they are (tests/test_layer_monte_carlo.cpp measured both against a photon
+            // Monte Carlo). Otherwise the blend of entry(): the rescaled lobe where the ordinates resolve it, and
+            // the interpolated internal radiance at the Snell direction times `expected`.
+            if (face.boundary().rough_interface()->shadowing() == Shadowing::masking_only) return;
+            specular = expected * blend(gauss, expected, ws.out);
         }
         if (!(specular > 0) || !(mu_t > 0)) return;
-        shape(mu_t, mu_o, boundary.rough() ? &ops : nullptr, bottom ? Incidence::from_above : Incidence::from_below, ws);
-        lagrange(mu_t, critical_cosine(boundary, bottom), 4, ws);
+        specular_spread(face, Crossing::leaving, mu_o, mu_t, mu_t, 4, ws);
         for (std::size_t i = 0; i < m; ++i) {
             Real pole = 1;
             const Real step = pole_factor(mu_t, q_.nodes[i]);
@@ -588,52 +774,65 @@ private:
     // No NaN or infinite component (the evaluation functions return 0 for such a direction).
     static bool finite(Vec3<Real> v) noexcept { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-    // The unscattered beam between two specular boundaries (see direct_transmittance), exactly at mu_i.
+    // The unscattered beam between two specular faces at internal cosine mu: d = e^{-tau/mu} per pass, the faces'
+    // reflectances from inside, r21 (top) and r23 (bottom), and loss = 1 - r21 r23 d^2, the share of the beam that a
+    // round trip does not bring back; its bounces sum to the geometric series 1 + r21 r23 d^2 + ... = 1 / loss.
+    // Trapped (loss = 0): total internal reflection at both faces and nothing taken from the beam (d = 1: tau = 0,
+    // or tau / mu below rounding). No light from outside reaches such a beam (the value for it is 0) and its
+    // series would be 1 / 0: the callers skip it.
+    struct DirectBeam {
+        Real d, r21, r23, loss;
+        bool trapped() const noexcept { return !(loss > 0); }
+        Real bounces() const noexcept { return Real(1) / loss; }
+        // Energy taken from a beam of unit flux over all its passes: (1 - d)(1 + r23 d) / (1 - r21 r23 d^2).
+        Real extracted() const noexcept {
+            if (!(d < 1)) return Real(0);  // nothing taken (and 0 / 0 when trapped)
+            return (Real(1) - d) * (Real(1) + r23 * d) / loss;
+        }
+    };
+    DirectBeam direct_beam(Real mu) const noexcept {
+        const Real d = std::isinf(direct_tau_) ? Real(0) : std::exp(-direct_tau_ / mu);
+        const Real r21 = top_.smooth_interface().reflectance(-mu), r23 = bottom_.smooth_interface().reflectance(mu);
+        return {d, r21, r23, Real(1) - r21 * r23 * d * d};
+    }
+
+    // The unscattered beam between two specular boundaries (see direct_transmittance), exactly at mu_i: it enters
+    // with T_12(mu_i), bounces between the faces, and leaves through the bottom with T_23 or, after a reflection
+    // there, through the top with T_21.
     Real direct(Real mu_i, bool transmitted) const {
         if (!direct_separated_) return Real(0);
-        const SmoothDielectric<Real>& t = top_.smooth_interface();
-        const SmoothDielectric<Real>& b = bottom_.smooth_interface();
-        const Real mu_t = std::fabs(t.transmitted_cosine(mu_i));
+        const Real mu_t = top_face().internal_cosine(mu_i);
         if (!(mu_t > 0)) return Real(0);
-        const Real d = std::isinf(direct_tau_) ? Real(0) : std::exp(-direct_tau_ / mu_t);
-        // 0 when the beam is trapped: total internal reflection at both faces with d = 1 (tau = 0), which rounding
-        // produces for grazing incidence (mu_i^2 below the rounding of eta^2 - 1 puts mu_t exactly on the critical
-        // cosine): the true value there is O(T_12(mu_i)) = O(mu_i) < 1e-7, while 1 / 0 times 0 would be NaN.
-        const Real denominator = Real(1) - t.reflectance(-mu_t) * b.reflectance(mu_t) * d * d;
-        if (!(denominator > 0)) return Real(0);
-        const Real bounce = Real(1) / denominator;
-        const Real into = t.transmittance(mu_i) * d * bounce;
-        return transmitted ? into * b.transmittance(mu_t) : into * b.reflectance(mu_t) * d * t.transmittance(-mu_t);
+        // Trapped: rounding puts mu_t exactly on the critical cosine for grazing incidence (mu_i^2 below the rounding
+        // of eta^2 - 1) with tau = 0; the true value there is O(T_12(mu_i)) = O(mu_i) < 1e-7.
+        const DirectBeam beam = direct_beam(mu_t);
+        if (beam.trapped()) return Real(0);
+        const SmoothDielectric<Real>& t = top_.smooth_interface();
+        const Real into = t.transmittance(mu_i) * beam.d * beam.bounces();
+        return transmitted ? into * bottom_.smooth_interface().transmittance(mu_t)
+                           : into * beam.r23 * beam.d * t.transmittance(-mu_t);
     }
 
     // Between specular faces the scattered light is driven by the beam spread over the ordinates, whose
-    // extinction differs from the true beam's. Energy taken from a beam of unit flux entering at internal
-    // cosine x, over all its passes: E(x) = (1 - d)(1 + r23 d) / (1 - r21 r23 d^2), d = e^{-tau/x}. The scattered
-    // field is scaled by E(mu_t) / sum_m s_m E(mu_m), s_m the spread's flux shares, so that it receives exactly
-    // the energy the true beam loses (energy is then conserved exactly with the exact direct beam).
+    // extinction differs from the true beam's. The scattered field is scaled by E(mu_t) / sum_m s_m E(mu_m), with
+    // E the energy a beam loses over all its passes (DirectBeam::extracted) and s_m the spread's flux shares, so
+    // that it receives exactly the energy the true beam loses (energy is then conserved exactly with the exact
+    // direct beam).
     Real scattering_scale(Real mu_i, Workspace& ws) const {
         if (!direct_separated_ || modes_ == 0) return Real(1);
-        const SmoothDielectric<Real>& t = top_.smooth_interface();
-        const SmoothDielectric<Real>& b = bottom_.smooth_interface();
-        auto extracted = [&](Real x) {
-            const Real d = std::isinf(direct_tau_) ? Real(0) : std::exp(-direct_tau_ / x);
-            if (!(d < 1)) return Real(0);  // nothing taken (and 0 / 0 under total internal reflection at both faces)
-            const Real r21 = t.reflectance(-x), r23 = b.reflectance(x);
-            return (Real(1) - d) * (Real(1) + r23 * d) / (Real(1) - r21 * r23 * d * d);
-        };
-        const Real mu_t = std::fabs(t.transmitted_cosine(mu_i));
+        const Real mu_t = top_face().internal_cosine(mu_i);
         if (!(mu_t > 0)) return Real(1);
         entry(mu_i, ws);
         Real spread = 0, total = 0;
         for (std::size_t n = 0; n < q_.size(); ++n) {
             const Real share = q_.weights[n] * q_.nodes[n] * ws.c[n];  // mode-0 flux share (up to 1 / 2 pi)
-            spread += share * extracted(q_.nodes[n]);
+            spread += share * direct_beam(q_.nodes[n]).extracted();
             total += share;
         }
         // The shares are Lagrange weights and may be negative; where the spread extracts less than half the
         // true beam's energy the scale is capped at 2, so that the spread's overshoot is not amplified.
         if (!(spread > 0)) return Real(1);
-        return std::fmin(total * extracted(mu_t) / spread, Real(2));
+        return std::fmin(total * direct_beam(mu_t).extracted() / spread, Real(2));
     }
 
     // Flux leaving through a boundary from the mode-0 internal field: 2 pi sum_n w_n mu_n f_n tau(mu_n).
@@ -683,221 +882,165 @@ LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& to
     return LayeredSurface<Real>::solve(top, slabs, interior, bottom, options, request);
 }
 
+// The method (see the top of this file), in its steps:
+//  1. check the input and count the modes to solve (none for the surface reflection alone);
+//  2. the boundaries' operators on the ordinates, and the stack below the top prepared for the adding: delta-M
+//     scaled slabs with their phase matrices, the interior faces' operators (detail::prepare_stack);
+//  3. tau(mu_m), the transmittance out of the layer through each face at each ordinate (reflectance, transmittance);
+//  4. per mode, everything below the top by the adding equations, then the internal-field operators Q_b and Q_e
+//     (solve_modes);
+//  5. the ambient field under a uniform sky, from Q_b of mode 0 (solve_ambient);
+//  6. between two specular faces, the unscattered beam taken out of Q_b and Q_e, to be added back exactly at the
+//     true angle (separate_direct_beam);
+//  7. the internal fields of the requested incidences (precompute_incidences).
 template <class Real>
 LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                                  const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
                                                  const LayerOptions& options, const LayerRequest<Real>& request) {
-    detail::require_count("options.ordinates", options.ordinates, 1);
-    detail::require_count("options.modes", options.modes, 0);
-    detail::require_count("request.max_modes", request.max_modes, 0);
-    detail::require_count("slabs.size()", static_cast<int>(slabs.size()), 1);
-    if (!(request.tolerance >= 0 && request.tolerance < 1))
-        detail::throw_out_of_range("request.tolerance", request.tolerance, "[0, 1)");
-    if (interior.size() + 1 != slabs.size())
-        detail::fail_invalid_argument("stratum: solve_stack needs interior.size() == slabs.size() - 1, got " +
-                                    std::to_string(interior.size()) + " and " + std::to_string(slabs.size()));
-    {
-        Real above = top.eta_below();
-        for (std::size_t i = 0; i <= interior.size(); ++i) {
-            const Real below = i < interior.size() ? interior[i].eta_above() : bottom.eta_above();
-            if (below != above)
-                detail::fail_invalid_argument("stratum: boundary indices disagree around slab " + std::to_string(i) + ": " +
-                                            detail::format_value(above) + " above it, " + detail::format_value(below) +
-                                            " below it");
-            if (i < interior.size()) above = interior[i].eta_below();
-        }
-    }
-    for (std::size_t j = 0; j < request.incidence.size(); ++j)
-        detail::require_closed(("request.incidence[" + std::to_string(j) + "]").c_str(), request.incidence[j],
-                               std::nextafter(Real(0), Real(1)), Real(1));
-
+    detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
     LayeredSurface s(top, bottom);
     s.outputs_ = request.outputs;
     s.q_ = gauss_legendre_half<Real>(options.ordinates);
-    const Quadrature<Real>& q = s.q_;
-    const std::size_t m = q.size();
-    const bool want_r = includes(request.outputs, LayerOutput::subsurface_reflection);
-    const bool want_t = includes(request.outputs, LayerOutput::transmission);
-    const bool want_a = includes(request.outputs, LayerOutput::ambient);
-    const bool want_ops = includes(request.outputs, LayerOutput::operators);
-    int modes = options.modes > 0 ? options.modes : 2 * options.ordinates;
-    if (request.max_modes > 0) modes = std::min(modes, request.max_modes);
-    if (!want_r && !want_t && !want_ops) modes = want_a ? 1 : 0;  // ambient: mode 0 only; surface only: no solve
     s.incidence_ = request.incidence;
-    if (modes == 0) {
-        s.modes_ = 0;
-        return s;
-    }
+    const int modes = detail::mode_count(options, request);
+    if (modes == 0) return s;
 
-    s.top_ops_.emplace(top.operators(q, modes, options));
-    s.bottom_ops_.emplace(bottom.operators(q, modes, options));
-    // Interior faces of a stack: the adding equations multiply a face's energy error by the bounces between
-    // the faces around it, so under SpecularTransmission::automatic a smooth interior face is flux_conserving
-    // both ways (exact energy per ordinate). Pointwise out of the denser medium created up to 26% of the
-    // incident energy at M = 4 and 2% at M = 16 (thin slabs between smooth faces; tests/test_layer_inputs.cpp).
-    // An explicit choice is kept (README, known limitations).
-    LayerOptions interior_options = options;
-    if (interior_options.specular_transmission == SpecularTransmission::automatic)
-        interior_options.specular_transmission = SpecularTransmission::flux_conserving;
-    std::vector<InterfaceOperators<Real>> interior_ops;
-    for (const Boundary<Real>& b : interior) interior_ops.push_back(b.operators(q, modes, interior_options));
-    std::vector<detail::SlabModes<Real>> prepared;
-    for (const Slab<Real>& slab : slabs) {
-        prepared.push_back(detail::prepare_slab(slab, q, modes, options.delta_m, slab.optical_thickness()));
-        detail::SlabModes<Real>& p = prepared.back();
-        // Semi-infinite shortcut: the diffuse field decays into the slab no faster than e^{-lambda_min tau}
-        // (lambda_min: the smallest mode-0 eigenvalue), which is slower than the beam's e^{-tau}; so the
-        // criterion is e^{-lambda_min tau} < tolerance, not e^{-tau} < tolerance.
-        const Real tau = p.slab.optical_thickness();
-        if (request.tolerance > 0 && !want_t && !want_ops && slabs.size() == 1 && std::isfinite(tau) &&
-            p.slab.one_minus_albedo() > 0) {
-            const auto es = detail::slab_eigensystem(p.slab.one_minus_albedo(), q.nodes, q.weights, p.phase.same_k(0),
-                                                     p.phase.opposite_k(0), 0);
-            Real lambda_min = std::numeric_limits<Real>::infinity();
-            for (Real l : es.lambda) lambda_min = std::fmin(lambda_min, l);
-            if (std::exp(-lambda_min * tau) < request.tolerance)
-                p.slab = Slab<Real>::from_one_minus_albedo(p.slab.one_minus_albedo(), p.slab.g(),
-                                                           std::numeric_limits<Real>::infinity());
-        }
-    }
-    // The slab modes. A phase function too peaked for the ordinates (|g| near 1 without delta-M, or any g < 0
-    // near -1, whose backward peak delta-M cannot remove) has a truncated expansion that is not admissible on
-    // them: the slab solver then regularizes its aliased part (regularize_aliased_phase = true; slab.hpp), which
-    // keeps the results finite and energy-conserving. Admissible phase functions are solved as without it.
-    auto slab_mode = [&](const detail::SlabModes<Real>& p, int k) {
-        return slab_component(solve_slab_mode(p.slab, q, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
-    };
-    // Hemispherical transmittance out of the layer at each ordinate (for the reflectance/transmittance fluxes).
-    s.exit_top_.resize(m);
-    s.exit_bottom_.resize(m);
-    // (the renormalized rough operators computed these totals already)
-    const auto& top_totals = s.top_ops_->ordinate_totals(Incidence::from_below);
-    const auto& bottom_totals = s.bottom_ops_->ordinate_totals(Incidence::from_above);
-    for (std::size_t i = 0; i < m; ++i) {
-        s.exit_top_[i] = top_totals.size() == m ? top_totals[i].transmittance : top.hemispherical_transmittance(-q.nodes[i]);
-        s.exit_bottom_[i] = bottom_totals.size() == m ? bottom_totals[i].transmittance : bottom.hemispherical_transmittance(q.nodes[i]);
-    }
-
-    using detail::Matrix;
-    bool any_rough = top.rough() || bottom.rough();
-    for (const Boundary<Real>& b : interior) any_rough = any_rough || b.rough();
-    Real norm0 = 0;
-    int below_tolerance = 0;
-    int solved = 0;
-    for (int k = 0; k < modes; ++k) {
-        // middle = slabs and interior interfaces; lower = middle + bottom interface.
-        ComponentOperators<Real> middle = slab_mode(prepared[0], k);
-        Real slab_size = detail::diffuse_size(middle, q.nodes, prepared[0].slab.optical_thickness());
-        for (std::size_t i = 0; i < interior.size(); ++i) {
-            middle = add_components(middle, detail::interface_component(interior_ops[i], k));
-            const ComponentOperators<Real> next = slab_mode(prepared[i + 1], k);
-            slab_size = std::fmax(slab_size, detail::diffuse_size(next, q.nodes, prepared[i + 1].slab.optical_thickness()));
-            middle = add_components(middle, next);
-        }
-        const ComponentOperators<Real> bottom_c = detail::interface_component(*s.bottom_ops_, k);
-        const ComponentOperators<Real> lower = add_components(middle, bottom_c);
-        const Matrix<Real> S = detail::as_matrix(m, lower.reflection_down);
-        const Matrix<Real> r21 = detail::as_matrix(m, std::vector<Real>(s.top_ops_->R21().mode(k), s.top_ops_->R21().mode(k) + m * m));
-        // A = (I - R21 S)^{-1};  Q_b = S A;  Q_e = (I - R_mid_up R23)^{-1} T_mid_down A.
-        const detail::LU<Real> lu_a = detail::lu_factor(detail::one_minus_product(r21, S));
-        Matrix<Real> qb = S;  // Q_b = S A = (I - S R21)^{-1} S, solved from the right via the transpose form
-        {
-            // S A: solve A^T-free form: (I - R21 S) X = I gives A; then Q_b = S A.
-            Matrix<Real> a = Matrix<Real>::identity(m);
-            detail::lu_solve(lu_a, a);
-            qb = detail::multiply(S, a);
-            if (want_t) {
-                const Matrix<Real> r_mid_up = detail::as_matrix(m, middle.reflection_up);
-                const Matrix<Real> r23 = detail::as_matrix(m, bottom_c.reflection_down);
-                Matrix<Real> x = detail::multiply(detail::as_matrix(m, middle.transmission_down), a);
-                detail::lu_solve(detail::lu_factor(detail::one_minus_product(r_mid_up, r23)), x);
-                s.qe_.push_back(std::move(x));
-            }
-        }
-        if (want_ops) s.whole_.push_back(add_components(detail::interface_component(*s.top_ops_, k), lower));
-        s.qb_.push_back(std::move(qb));
-        solved = k + 1;
-        // Adaptive mode count: mode k is negligible when the BRDF/BTDF Fourier coefficients it adds at the
-        // ordinate pairs, (2 - delta_k0)/(2 pi) (T21 Q_b T12)_nj / (w_j mu_j) (and T23 Q_e T12), are below
-        // tolerance relative to the largest mode-0 coefficient. Through specular boundaries only, the
-        // unscattered beam is a delta that no number of modes represents: there the slabs' diffuse operators
-        // are measured instead. Stop after two consecutive negligible modes.
-        if (request.tolerance > 0) {
-            Real size_k = 0;
-            if (any_rough) {
-                const Matrix<Real> t12 = detail::as_matrix(m, std::vector<Real>(s.top_ops_->T12().mode(k), s.top_ops_->T12().mode(k) + m * m));
-                auto coefficient_size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner) {
-                    const Matrix<Real> x = detail::multiply(exit, detail::multiply(inner, t12));
-                    Real big = 0;
-                    for (std::size_t n = 0; n < m; ++n)
-                        for (std::size_t j = 0; j < m; ++j)
-                            big = std::fmax(big, std::fabs(x(n, j)) / (q.weights[j] * q.nodes[j]));
-                    return big * (k == 0 ? Real(1) : Real(2));
-                };
-                if (want_r || want_a)
-                    size_k = coefficient_size(detail::as_matrix(m, std::vector<Real>(s.top_ops_->T21().mode(k), s.top_ops_->T21().mode(k) + m * m)), s.qb_.back());
-                if (want_t)
-                    size_k = std::fmax(size_k, coefficient_size(detail::as_matrix(m, bottom_c.transmission_down), s.qe_.back()));
-            } else {
-                size_k = slab_size;
-            }
-            if (k == 0) norm0 = size_k;
-            below_tolerance = (k > 0 && size_k <= request.tolerance * norm0) ? below_tolerance + 1 : 0;
-            if (below_tolerance == 2) break;
-        }
-    }
-    s.modes_ = solved;
-
-    if (want_a) {
-        // (computed before the unscattered beam is taken out of Q_b: under a diffuse sky it is diffuse too)
-        // Uniform unit sky: radiance transmitted to internal ordinate m is (n2/n1)^2 tau_21(mu_m) by
-        // reciprocity of the top's BTDF (t_12 / n_2^2 = t_21 / n_1^2 with arguments swapped).
-        const Real ratio = top.eta_below() / top.eta_above();
-        std::vector<Real> c(m);
-        for (std::size_t i = 0; i < m; ++i) c[i] = ratio * ratio * s.exit_top_[i];
-        s.ambient_field_.assign(m, Real(0));
-        for (std::size_t n = 0; n < m; ++n)
-            for (std::size_t i = 0; i < m; ++i) s.ambient_field_[n] += s.qb_[0](n, i) * c[i];
-    }
-    // Between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its
-    // path is diagonal): take it out of Q_b and Q_e, per ordinate
-    //   Q_e^dir = d / (1 - r21 r23 d^2),   Q_b^dir = d^2 r23 / (1 - r21 r23 d^2),   d = e^{-tau/mu_m},
-    // so that brdf/btdf hold scattered light only, and add it back exactly at the true angle (direct()).
-    if (!top.rough() && !bottom.rough() && slabs.size() == 1) {
-        s.direct_separated_ = true;
-        s.direct_tau_ = prepared[0].slab.optical_thickness();
-        for (std::size_t i = 0; i < m; ++i) {
-            const Real mu = q.nodes[i];
-            const Real d = std::isinf(s.direct_tau_) ? Real(0) : std::exp(-s.direct_tau_ / mu);
-            const Real r21 = top.smooth_interface().reflectance(-mu), r23 = bottom.smooth_interface().reflectance(mu);
-            // 1 - r21 r23 d^2 = 0: total internal reflection at both faces and nothing taken from the beam
-            // (d = 1: tau = 0, or tau / mu below rounding). No beam from outside reaches such an ordinate, and
-            // the series would be 1 / 0 (inf - inf = NaN in Q_b): there is nothing to take out.
-            const Real denominator = Real(1) - r21 * r23 * d * d;
-            if (!(denominator > 0)) continue;
-            const Real bounce = Real(1) / denominator;
-            for (int k = 0; k < s.modes_; ++k) {
-                s.qb_[static_cast<std::size_t>(k)](i, i) -= d * d * r23 * bounce;
-                if (want_t) s.qe_[static_cast<std::size_t>(k)](i, i) -= d * bounce;
-            }
-        }
-    }
-
-    // Precompute the fields of the requested incidences.
-    Workspace ws;
-    s.cached_b_.assign(s.incidence_.size(), {});
-    s.cached_e_.assign(s.incidence_.size(), {});
-    for (std::size_t j = 0; j < s.incidence_.size(); ++j) {
-        if (want_r) {
-            const Real* f = s.field(s.incidence_[j], false, ws);
-            s.cached_b_[j].assign(f, f + static_cast<std::size_t>(s.modes_) * m);
-        }
-        if (want_t) {
-            const Real* f = s.field(s.incidence_[j], true, ws);
-            s.cached_e_[j].assign(f, f + static_cast<std::size_t>(s.modes_) * m);
-        }
-    }
+    s.top_ops_.emplace(top.operators(s.q_, modes, options));  // 2.
+    s.bottom_ops_.emplace(bottom.operators(s.q_, modes, options));
+    const detail::PreparedStack<Real> stack =
+        detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request);
+    s.exit_top_ = s.top_face().transmittance_at_ordinates();  // 3.
+    s.exit_bottom_ = s.bottom_face().transmittance_at_ordinates();
+    s.solve_modes(stack, modes, request.tolerance);  // 4.
+    if (includes(request.outputs, LayerOutput::ambient)) s.solve_ambient();  // 5.
+    if (!top.rough() && !bottom.rough() && slabs.size() == 1)  // 6.
+        s.separate_direct_beam(stack.slabs[0].slab.optical_thickness());
+    s.precompute_incidences();  // 7.
     return s;
+}
+
+// Step 4: modes 0, 1, ... up to `modes`: mode k of everything below the top face (detail::stack_mode), its Q_b and
+// Q_e (add_field_operators) and, when requested, the whole layer's operators. With a tolerance, mode k is
+// negligible when the BRDF/BTDF Fourier coefficients it adds are below tolerance relative to mode 0's
+// (coefficient_size); through specular boundaries only, the unscattered beam is a delta that no number of modes
+// represents, so the slabs' diffuse operators are measured instead. The loop stops after two consecutive
+// negligible modes.
+template <class Real>
+void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack, int modes, Real tolerance) {
+    Real size0 = 0;
+    int negligible = 0;  // consecutive negligible modes
+    for (int k = 0; k < modes; ++k) {
+        const detail::StackMode<Real> below = detail::stack_mode(stack, *bottom_ops_, q_, k);
+        add_field_operators(k, below);
+        if (includes(outputs_, LayerOutput::operators))
+            whole_.push_back(add_components(detail::interface_component(*top_ops_, k), below.lower));
+        modes_ = k + 1;
+        if (!(tolerance > 0)) continue;
+        const Real size = stack.any_rough ? coefficient_size(k, below.bottom) : below.slab_size;
+        if (k == 0) size0 = size;
+        negligible = (k > 0 && size <= tolerance * size0) ? negligible + 1 : 0;
+        if (negligible == 2) break;
+    }
+}
+
+// Q_b and Q_e of mode k (the top of this file): with S the reflection of everything below the top face and
+// A = (I - R_21 S)^{-1} (the down-going field just below the top per unit transmitted coefficient),
+//     Q_b = S A,    Q_e = (I - R_mid,up R_23)^{-1} T_mid,down A   (only when transmission is requested),
+// R_mid,up and T_mid,down those of the slabs and interior faces, R_23 the bottom's.
+template <class Real>
+void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Real>& below) {
+    using detail::Matrix;
+    const std::size_t m = q_.size();
+    const Matrix<Real> S = detail::as_matrix(m, below.lower.reflection_down);
+    const Matrix<Real> r21 = detail::mode_matrix(top_ops_->R21(), k);
+    Matrix<Real> a = Matrix<Real>::identity(m);
+    detail::lu_solve(detail::lu_factor(detail::one_minus_product(r21, S)), a);
+    qb_.push_back(detail::multiply(S, a));
+    if (!includes(outputs_, LayerOutput::transmission)) return;
+    const Matrix<Real> r_mid_up = detail::as_matrix(m, below.middle.reflection_up);
+    const Matrix<Real> r23 = detail::as_matrix(m, below.bottom.reflection_down);
+    Matrix<Real> x = detail::multiply(detail::as_matrix(m, below.middle.transmission_down), a);
+    detail::lu_solve(detail::lu_factor(detail::one_minus_product(r_mid_up, r23)), x);
+    qe_.push_back(std::move(x));
+}
+
+// The size of mode k for the adaptive mode count: the largest BRDF/BTDF Fourier coefficient it adds at the
+// ordinate pairs, (2 - delta_k0) (T_21 Q_b T_12)_nj / (w_j mu_j) (and T_23 Q_e T_12; the common 1 / (2 pi) left
+// out), for the outputs that were requested.
+template <class Real>
+Real LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real>& bottom) const {
+    using detail::Matrix;
+    const std::size_t m = q_.size();
+    const Matrix<Real> t12 = detail::mode_matrix(top_ops_->T12(), k);
+    auto size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner) {
+        const Matrix<Real> x = detail::multiply(exit, detail::multiply(inner, t12));
+        Real big = 0;
+        for (std::size_t n = 0; n < m; ++n)
+            for (std::size_t j = 0; j < m; ++j) big = std::fmax(big, std::fabs(x(n, j)) / (q_.weights[j] * q_.nodes[j]));
+        return big * (k == 0 ? Real(1) : Real(2));
+    };
+    Real size_k = 0;
+    if (includes(outputs_, LayerOutput::subsurface_reflection) || includes(outputs_, LayerOutput::ambient))
+        size_k = size(detail::mode_matrix(top_ops_->T21(), k), qb_.back());
+    if (includes(outputs_, LayerOutput::transmission))
+        size_k = std::fmax(size_k, size(detail::as_matrix(m, bottom.transmission_down), qe_.back()));
+    return size_k;
+}
+
+// Step 5: the mode-0 up-going field just below the top under a uniform sky of unit radiance (computed before the
+// unscattered beam is taken out of Q_b: under a diffuse sky it is diffuse too). The radiance transmitted to
+// internal ordinate m is (n2/n1)^2 tau_21(mu_m) by reciprocity of the top's BTDF (t_12 / n_2^2 = t_21 / n_1^2
+// with the arguments swapped); the field is Q_b of it.
+template <class Real>
+void LayeredSurface<Real>::solve_ambient() {
+    const std::size_t m = q_.size();
+    const Real ratio = top_.eta_below() / top_.eta_above();
+    std::vector<Real> c(m);
+    for (std::size_t i = 0; i < m; ++i) c[i] = ratio * ratio * exit_top_[i];
+    ambient_field_.assign(m, Real(0));
+    for (std::size_t n = 0; n < m; ++n)
+        for (std::size_t i = 0; i < m; ++i) ambient_field_[n] += qb_[0](n, i) * c[i];
+}
+
+// Step 6: between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its
+// path is diagonal): take it out of Q_b and Q_e, per ordinate (DirectBeam)
+//   Q_e^dir = d / (1 - r21 r23 d^2),   Q_b^dir = d^2 r23 / (1 - r21 r23 d^2),   d = e^{-tau/mu_m},
+// so that brdf/btdf hold scattered light only, and add it back exactly at the true angle (direct()). A trapped
+// beam is reached by no light from outside: there is nothing to take out (and its series would be 1 / 0).
+template <class Real>
+void LayeredSurface<Real>::separate_direct_beam(Real tau) {
+    direct_separated_ = true;
+    direct_tau_ = tau;
+    const bool want_t = includes(outputs_, LayerOutput::transmission);
+    for (std::size_t i = 0; i < q_.size(); ++i) {
+        const DirectBeam beam = direct_beam(q_.nodes[i]);
+        if (beam.trapped()) continue;
+        const Real bounces = beam.bounces();
+        for (int k = 0; k < modes_; ++k) {
+            qb_[static_cast<std::size_t>(k)](i, i) -= beam.d * beam.d * beam.r23 * bounces;
+            if (want_t) qe_[static_cast<std::size_t>(k)](i, i) -= beam.d * bounces;
+        }
+    }
+}
+
+// Step 7: the internal fields (K blocks of M) of the requested incidences (LayerRequest::incidence), so that
+// evaluation there skips entry() and the per-mode products.
+template <class Real>
+void LayeredSurface<Real>::precompute_incidences() {
+    const std::size_t size = static_cast<std::size_t>(modes_) * q_.size();
+    Workspace ws;
+    cached_b_.assign(incidence_.size(), {});
+    cached_e_.assign(incidence_.size(), {});
+    for (std::size_t j = 0; j < incidence_.size(); ++j) {
+        if (includes(outputs_, LayerOutput::subsurface_reflection)) {
+            const Real* f = field(incidence_[j], false, ws);
+            cached_b_[j].assign(f, f + size);
+        }
+        if (includes(outputs_, LayerOutput::transmission)) {
+            const Real* f = field(incidence_[j], true, ws);
+            cached_e_[j].assign(f, f + size);
+        }
+    }
 }
 
 /// Solves one layer: `slab` between `top` (media 1 | 2) and `bottom` (2 | 3). See solve_stack.

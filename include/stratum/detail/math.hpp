@@ -1,5 +1,6 @@
 // stratum/detail/math.hpp -- math helpers shared by the modules (not part of the public API): constants,
-// the widened working type, a non-deduced template context, polynomial evaluation and log-gamma.
+// the widened working type, a non-deduced template context, polynomial evaluation, log-gamma and local
+// Lagrange interpolation weights.
 //
 // Everything here is noexcept, allocation-free and thread-safe: no global state is read or written. (This is
 // why the library has its own log-gamma: glibc's std::lgamma writes the global `signgam` on every call, a data
@@ -151,6 +152,46 @@ template <class W>
 STRATUM_HOST_DEVICE W log_beta1(W a, W b) noexcept {
     const W big = a < b ? b : a, small = a < b ? a : b;
     return log_gamma(1 + small) + log_gamma_ratio(1 + big, 1 + small);
+}
+
+/// The stencil lagrange_weights chose: nodes[first .. first + points - 1].
+struct LagrangeWindow {
+    int first;
+    int points;
+};
+
+/// Local Lagrange interpolation at x: the weights of the p-point interpolating polynomial on the p consecutive
+/// nodes nearest to x among nodes[lowest .. count - 1] (ascending; p is reduced to count - lowest where that is
+/// fewer), w[a] = prod_{b != a} (x - x_b) / (x_a - x_b) for node first + a, a < p. The weights sum to 1 (up to
+/// rounding) and reproduce polynomials of degree < p. The stencil has p / 2 nodes above x where it can and is
+/// clamped to the ends, where it extrapolates (so weights may be negative or exceed 1). `nodes` is anything
+/// indexable by std::size_t: a pointer to the ordinates (interface_operators.hpp, layer.hpp) or a grid computing
+/// its nodes (the equispaced tables of layer.hpp). Requires lowest < count.
+template <class Nodes, class W>
+STRATUM_HOST_DEVICE LagrangeWindow lagrange_weights(const Nodes& nodes, int count, W x, int p, W* w,
+                                                    int lowest = 0) noexcept {
+    if (p > count - lowest) p = count - lowest;
+    // The first node above x, by bisection (a NaN x compares false and gives `lowest`, as a linear scan would).
+    int above = lowest, end = count;
+    while (above < end) {
+        const int mid = above + (end - above) / 2;
+        if (nodes[static_cast<std::size_t>(mid)] <= x) above = mid + 1;
+        else end = mid;
+    }
+    int first = above - p / 2;
+    if (first > count - p) first = count - p;
+    if (first < lowest) first = lowest;
+    for (int a = 0; a < p; ++a) {
+        const W xa = nodes[static_cast<std::size_t>(first + a)];
+        W l = 1;
+        for (int b = 0; b < p; ++b) {
+            if (b == a) continue;
+            const W xb = nodes[static_cast<std::size_t>(first + b)];
+            l *= (x - xb) / (xa - xb);
+        }
+        w[a] = l;
+    }
+    return {first, p};
 }
 
 }  // namespace stratum::detail
