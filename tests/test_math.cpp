@@ -4,6 +4,7 @@
 
 #include <stratum/detail/math.hpp>
 #include <stratum/interface.hpp>
+#include <stratum/quadrature.hpp>
 
 #include <cmath>
 #include <algorithm>
@@ -128,4 +129,44 @@ TEST_CASE("the BTDF's Beta function agrees with the previous three-lgamma form")
         }
     MESSAGE("B(1 + a, 1 + b): max relative difference " << max_old << " from the three-lgamma form (a, b <= 20), "
                                                          << max_ld << " from the long double reference");
+}
+
+TEST_CASE("lagrange_weights reproduce polynomials of degree < p and choose the nearest stencil") {
+    // Reference: a polynomial of degree p - 1 evaluated directly. Nodes: a half-range Gauss rule (uneven spacing).
+    const auto q = stratum::gauss_legendre_half<double>(9);
+    const int count = static_cast<int>(q.nodes.size());
+    auto poly = [](double x, int degree) {
+        double v = 0;
+        for (int d = 0; d <= degree; ++d) v = v * x + (1.0 + 0.5 * d);
+        return v;
+    };
+    for (int p : {1, 2, 3, 4, 6}) {
+        for (double x : {0.0, 0.013, 0.2, 0.5, 0.77, 0.99, 1.0, 1.2}) {
+            double w[8];
+            const auto window = stratum::detail::lagrange_weights(q.nodes.data(), count, x, p, w);
+            REQUIRE(window.points == p);
+            REQUIRE(window.first >= 0);
+            REQUIRE(window.first + window.points <= count);
+            double sum = 0, value = 0;
+            for (int a = 0; a < p; ++a) {
+                sum += w[a];
+                value += w[a] * poly(q.nodes[static_cast<std::size_t>(window.first + a)], p - 1);
+            }
+            INFO("p = " << p << ", x = " << x);
+            CHECK(sum == doctest::Approx(1.0).epsilon(1e-12));
+            CHECK(value == doctest::Approx(poly(x, p - 1)).epsilon(1e-10));
+            // Inside the node range the stencil brackets x (p >= 2) as far as the ends allow.
+            if (p >= 2 && x > q.nodes.front() && x < q.nodes.back()) {
+                const double lo = q.nodes[static_cast<std::size_t>(window.first)];
+                const double hi = q.nodes[static_cast<std::size_t>(window.first + p - 1)];
+                CHECK(lo <= x);
+                CHECK(x <= hi);
+            }
+        }
+    }
+    // `lowest` excludes the nodes below it (the layer's escape cone); p shrinks to what is left.
+    double w[4];
+    const auto window = stratum::detail::lagrange_weights(q.nodes.data(), count, 0.95, 4, w, count - 2);
+    CHECK(window.first == count - 2);
+    CHECK(window.points == 2);
 }

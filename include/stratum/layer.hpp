@@ -106,7 +106,8 @@ struct LayerRequest {
     int max_modes = 0;
     /// 0: everything exact to the discretization. > 0: (a) modes are solved in order and the loop stops
     /// after two consecutive modes whose operators are below tolerance relative to mode 0; (b) a slab with
-    /// e^{-tau} < tolerance is solved as semi-infinite when transmission is not requested.
+    /// e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode; docs/physics.md section 6) is solved as
+    /// semi-infinite when transmission is not requested.
     Real tolerance = 0;
 };
 
