@@ -59,7 +59,7 @@ namespace stratum {
 /// implicitly from a width alone.
 template <class Real = double>
 struct AzimuthalFeatures {
-    Real lobe_width = Real(3.141592653589793238462643383279502884L);
+    Real lobe_width = detail::pi_v<Real>;
     int break_count = 0;
     Real breaks[4] = {};
 
@@ -68,7 +68,7 @@ struct AzimuthalFeatures {
 
     /// Adds a breakpoint if it lies inside (0, pi) and there is room; keeps them ascending.
     void add_break(Real phi) noexcept {
-        const Real pi = Real(3.141592653589793238462643383279502884L);
+        const Real pi = detail::pi_v<Real>;
         if (!(phi > 0 && phi < pi) || break_count == 4) return;
         int i = break_count++;
         while (i > 0 && breaks[i - 1] > phi) {
@@ -95,7 +95,7 @@ public:
     /// 2 pi gives panels of length n / (K - 1), on which n-point Gauss integrates cos((K - 1) phi) to ~1e-16
     /// (it is exact to degree 2n - 1; measured: 1e-16 at (K - 1) h / 2 = n / 2, 3e-11 at 3n / 4).
     explicit AzimuthalQuadrature(int points_per_panel = 24,
-                                 Real points_per_period = Real(6.283185307179586476925286766559005768L))
+                                 Real points_per_period = detail::two_pi_v<Real>)
         : points_per_period_(detail::require_closed("points_per_period", points_per_period, Real(2), Real(1e6))) {
         detail::require_count("points_per_panel", points_per_panel, 2);
         const Quadrature<long double> q = gauss_legendre<long double>(points_per_panel);
@@ -118,7 +118,7 @@ public:
     template <class F>
     void for_each_panel(const AzimuthalFeatures<Real>& features, int modes, F&& f) const
         noexcept(noexcept(f(Real(0), Real(1), false, false))) {
-        const Real pi = Real(3.141592653589793238462643383279502884L);
+        const Real pi = detail::pi_v<Real>;
         const Real n = static_cast<Real>(nodes_.size());
         const Real h = modes > 1 ? std::fmin(pi, 2 * pi * n / (points_per_period_ * static_cast<Real>(modes - 1))) : pi;
         Real s = features.lobe_width;

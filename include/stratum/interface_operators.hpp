@@ -128,7 +128,7 @@ struct RoughKernel {
     }
 
     AzimuthalFeatures<Real> features(Real mu_in, Real mu_out) const noexcept {
-        const Real pi = Real(3.141592653589793238462643383279502884L);
+        const Real pi = detail::pi_v<Real>;
         const Real s_in = std::sqrt(std::fmax(Real(0), (1 - mu_in) * (1 + mu_in)));
         const Real s_out = std::sqrt(std::fmax(Real(0), (1 - mu_out) * (1 + mu_out)));
         const bool above = incidence == Incidence::from_above;

@@ -1,42 +1,19 @@
-// stratum/layer.hpp -- a scattering layer bounded by dielectric interfaces, solved by the discrete-
-// ordinate method (Stam 2001, "An Illumination Model for a Skin Layer Bounded by Rough Surfaces"),
-// evaluated at arbitrary directions.
+// stratum/layer.hpp -- a scattering layer (or a stack of them) bounded by dielectric interfaces, solved by the
+// discrete-ordinate method after Stam (2001) and evaluated at arbitrary directions: solve_layer, solve_stack and
+// the LayeredSurface they return.
 //
-// Geometry. Medium 1 (index n1) above, the layer (n2) in the middle, medium 3 (n3) below. The top
-// boundary separates 1 | 2, the bottom one 2 | 3; each is a RoughDielectric, a SmoothDielectric or index
-// matched. Directions follow vec3.hpp: wi towards the light, wo towards the viewer, both pointing away
-// from the surface; light arrives from above (wi.z > 0).
+// Geometry. Medium 1 (index n1) above, the layer (n2), medium 3 (n3) below; each face is a RoughDielectric, a
+// SmoothDielectric or index matched (Boundary). Directions follow vec3.hpp: wi towards the light, wo towards the
+// viewer, both pointing away from the surface; light arrives from above (wi.z > 0).
 //
-// Method (docs/physics.md sections 5-6). Per Fourier mode k and on M half-range ordinates, every component
-// is a set of M x M operators mapping incoming to outgoing radiance coefficients (adding.hpp): the
-// interfaces' R_12, T_12, R_21, T_21 (interface_operators.hpp) and the bare slab's R, T (slab.hpp). With
-// S the reflection of everything below the top interface seen from inside the layer (slab + bottom
-// interface, by the adding equations), the field inside the layer driven by radiance coefficients c
-// transmitted through the top is
-//     a = (I - R_21 S)^{-1} c          (down-going, just below the top interface)
-//     b = S a                          (up-going, just below the top interface)
-//     e = (I - R_s R_23)^{-1} T_s a    (down-going, arriving at the bottom interface)
-// so per mode the solver keeps Q_b = S (I - R_21 S)^{-1} and Q_e = (I - R_s R_23)^{-1} T_s (I - R_21 S)^{-1}.
-// Only the internal field lives on ordinates. For a rough top the incident direction enters through
-// the top's transmission coefficients evaluated at the true mu_0 and the outgoing one through t_21 at the
-// true mu (no interpolation; docs/physics.md section 6):
-//     c_{k,m}   = (2 - delta_k0) / (2 pi) I^{t12}_k(mu_0 -> mu_m)
-//     f_s(wi, wo) = sum_k cos(k dphi) sum_m w_m mu_m I^{t21}_k(mu_m -> mu) (Q_b c_k)_m,
-// with dphi the azimuth between the incident and outgoing PROPAGATION directions (-wi and wo).
-// Both Gauss sums over the ordinates (the flux entering, sum_m w_m mu_m I^{t12}_0, and the exit weights) are
-// rescaled to their exact values, T_12(mu_0) and (n_out/n_in)^2 T(mu) by reciprocity, so that a lobe the
-// ordinates do not resolve neither creates nor loses energy; the interface operators are renormalized to
-// the hemispherical totals in the same way (LayerOptions::renormalization).
-// A specular (smooth or index-matched) boundary has no BTDF to carry the true angle. Between two specular
-// faces the unscattered beam is kept out of the discrete fields and computed exactly at the true angle
-// (direct_transmittance, direct_reflectance: Fresnel factors, e^{-tau/mu'}, the bounces between the faces).
-// The light it scatters starts from the beam spread over the ordinates inside the escape cone (Lagrange
-// weights that conserve its flux, 4 points from 8 ordinates on, linear below; mode k scaled by
-// (sin theta' / sin theta_m)^k so that a beam along the normal has no k > 0 modes), scaled to the energy the
-// true beam loses; radiance leaves a smooth face by 4-point interpolation between the ordinates inside its
-// escape cone. That interpolation is the documented approximation of this path: tests/test_layer.cpp and
-// tests/test_layer_monte_carlo.cpp measure it (up to 0.01 near a critical angle). The exact treatment,
-// DISORT's beam source with intensities at user angles, is not done yet.
+// Method (docs/physics.md sections 5-6). Per Fourier mode, everything below the top face is combined by the
+// adding equations (adding.hpp) from the faces' operators (interface_operators.hpp) and the slab's
+// (slab.hpp); the solver keeps the operators that map light entering through the top to the internal field
+// (Q_b, Q_e; see add_field_operators). Only that field lives on the ordinates: a rough face couples it to the
+// true incident and outgoing angles through its Fourier coefficients there (entry, exit_sum), and the fluxes
+// are rescaled to the faces' exact hemispherical totals. Between two specular faces the unscattered beam is
+// kept apart and computed exactly (DirectBeam); the light it scatters leaves a smooth face by interpolation
+// between ordinates, the documented approximation of this path (README, known limitations).
 //
 // Units: BRDF/BTDF per steradian (cosine not included), reflectance and transmittance as fractions of the
 // incident flux, ambient as reflected radiance per unit incident sky radiance.
@@ -521,7 +498,6 @@ private:
     void separate_direct_beam(Real tau);
     void precompute_incidences();
 
-    static constexpr Real pi() noexcept { return Real(3.141592653589793238462643383279502884L); }
 
     // Which way light crosses a face: into the layer from outside, or out of it.
     enum class Crossing { entering, leaving };
@@ -627,7 +603,7 @@ private:
             for (std::size_t i = 0; i < m; ++i) {
                 top.transmission(Crossing::entering, mu_i, q_.nodes[i], ws.in.data());
                 gauss += q_.weights[i] * q_.nodes[i] * ws.in[0];
-                for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = ws.in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
+                for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = ws.in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
             }
             specular_share = blend(gauss, flux, ws.c);
             if (!(specular_share > 0)) return;
@@ -644,7 +620,7 @@ private:
             Real pole = 1;  // pole_factor(mu_t, mu_m)^k
             const Real step = pole_factor(mu_t, q_.nodes[i]);
             for (std::size_t k = 0; k < kk; ++k, pole *= step)
-                ws.c[k * m + i] += base * pole * ws.shape[k] * (k == 0 ? Real(1) : Real(2)) / (2 * pi());
+                ws.c[k * m + i] += base * pole * ws.shape[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
         }
     }
 
@@ -844,7 +820,7 @@ private:
     Real flux_out(const Real* fld, const std::vector<Real>& exit) const {
         Real s = 0;
         for (std::size_t n = 0; n < q_.size(); ++n) s += q_.weights[n] * q_.nodes[n] * fld[n] * exit[n];
-        return 2 * pi() * s;
+        return 2 * detail::pi_v<Real> * s;
     }
 
     Boundary<Real> top_, bottom_;
@@ -951,7 +927,7 @@ void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack,
     }
 }
 
-// Q_b and Q_e of mode k (the top of this file): with S the reflection of everything below the top face and
+// Q_b and Q_e of mode k: with S the reflection of everything below the top face and
 // A = (I - R_21 S)^{-1} (the down-going field just below the top per unit transmitted coefficient),
 //     Q_b = S A,    Q_e = (I - R_mid,up R_23)^{-1} T_mid,down A   (only when transmission is requested),
 // R_mid,up and T_mid,down those of the slabs and interior faces, R_23 the bottom's.
