@@ -441,6 +441,11 @@ TEST_CASE("pdf_radius stays finite for extreme coefficients (found by fuzz_point
     CHECK(d.pdf_radius(1e-9) == 0.0);
     CHECK(d.pdf_radius(1e-160) > 0.0);  // u = sigma_tr r ~ 5e-6: sigma_tr u e^{-u} ~ 2e149
     CHECK(std::isfinite(d.pdf_radius(1e-160)));
+    // sigma_tr = 2.9e116 at r = 9.8e237: u = sigma_tr r overflows, and u e^{-u} was inf * 0 = NaN.
+    const stratum::Dipole<double> e(1e-6, 2.8730586208123298e238, 1.1062296839689769);
+    CHECK(e.pdf_radius(9.837552273994947e237) == 0.0);
+    CHECK(e.Rd(9.837552273994947e237) == 0.0);  // the same overflow in the poles' (x + 1) e^{-x}
+    CHECK(e.Rd(1e100) == 0.0);
     const stratum::Dipole<double> skin(0.032, 0.74, 1.3);
     const double st = skin.sigma_tr(), r = 0.7;
     CHECK(skin.pdf_radius(r) == doctest::Approx(st * st * r * std::exp(-st * r)).epsilon(1e-15));

@@ -382,6 +382,7 @@ public:
     STRATUM_HOST_DEVICE Real pdf_radius(Real r) const noexcept {
         if (!(r >= 0) || !(r < std::numeric_limits<Real>::infinity())) return Real(0);
         const Real u = sigma_tr_ * r;  // sigma_tr (u e^{-u}): sigma_tr^2 alone overflows for sigma_tr > 1e154
+        if (!(u < std::numeric_limits<Real>::infinity())) return Real(0);  // u e^{-u} -> 0 (inf * 0 is NaN)
         return sigma_tr_ * (u * std::exp(-u));
     }
 
@@ -405,6 +406,7 @@ private:
     STRATUM_HOST_DEVICE Real pole(Real r2, Real z) const noexcept {
         const Real d = std::sqrt(r2 + z * z), inv = 1 / d;
         const Real x = sigma_tr_ * d;
+        if (!(x < std::numeric_limits<Real>::infinity())) return Real(0);  // (x + 1) e^{-x} -> 0, not inf * 0
         return z * (x + 1) * std::exp(-x) * inv * inv * inv;
     }
 
