@@ -374,3 +374,22 @@ TEST_CASE("delta samples at subnormal cosines are discarded, never inf (found by
     CHECK(n.valid());
     CHECK(std::isfinite(n.value));
 }
+
+TEST_CASE("hemispherical totals at cosines down to the smallest normal double are the grazing limit (found by fuzz_pointwise)") {
+    // sigma 2.87, n 10 | 9.87, height-correlated, mu = 2.25e-308: R was NaN (Lambda's 1/a overflowed).
+    for (const auto form : {Shadowing::height_correlated, Shadowing::separable, Shadowing::masking_only}) {
+        const RoughDielectric<double> face(2.8745131426069297, 10, 9.8673729616057031, form);
+        const auto limit = face.hemispherical_totals(1e-20);
+        for (double mu : {1e-150, 1e-200, 1e-300, 2.2516916358067193e-308, std::numeric_limits<double>::denorm_min()}) {
+            for (double sign : {1.0, -1.0}) {
+                const auto a = face.hemispherical_totals(sign * mu), ref = face.hemispherical_totals(sign * 1e-20);
+                INFO("mu = " << sign * mu);
+                CHECK(std::isfinite(a.reflectance));
+                CHECK(std::isfinite(a.transmittance));
+                CHECK(a.reflectance == doctest::Approx(ref.reflectance).epsilon(1e-12));
+                CHECK(a.transmittance == doctest::Approx(ref.transmittance).epsilon(1e-12));
+            }
+        }
+        CHECK(face.hemispherical_totals(0.0).reflectance == doctest::Approx(limit.reflectance).epsilon(1e-12));
+    }
+}

@@ -384,7 +384,11 @@ public:
         }
         const bool below = mu_i < 0;
         const W eta_i = below ? eta_below_ : eta_above_, eta_t = below ? eta_above_ : eta_below_;
-        const W m = std::fmin(std::fabs(static_cast<W>(mu_i)), W(1));
+        // Cosines below 1e-150 are raised to it: the totals have converged to their grazing limit long before
+        // (to all digits from 1e-20 on), and near the smallest normal double Lambda's 1/a overflowed into NaN
+        // (found by fuzz_pointwise at mu = 2.25e-308). 0 itself is the limit, handled exactly.
+        W m = std::fmin(std::fabs(static_cast<W>(mu_i)), W(1));
+        if (m > 0 && m < W(1e-150)) m = W(1e-150);
         const auto a = detail::rough_hemispherical_totals<W>(distribution_.sigma(), m, eta_t / eta_i, shadowing_, nodes);
         return {static_cast<Real>(a.reflectance), static_cast<Real>(a.transmittance)};
     }
