@@ -104,7 +104,7 @@ long double integrate_profile(const Dipole<double>& d) {
 TEST_CASE("the radial profile integrates to the total diffuse reflectance") {
     // int_0^inf R_d(r) 2 pi r dr = (alpha'/2)(1 + e^{-(4/3) A s}) e^{-s} is exact (each pole integrates in closed
     // form); the quadrature above converges to ~1e-15, double evaluation of R_d(r) adds ~1e-16 per point.
-    // The issue asks for 1e-9; we hold 1e-13 (measured 4e-16).
+    // 1e-9 is required; we hold 1e-13 (measured 4e-16).
     double worst = 0;
     for (double eta : {1.0, 1.3, 1.5}) {
         for (double alpha : {0.01, 0.3, 0.9, 0.999, 0.999999}) {
@@ -127,8 +127,8 @@ TEST_CASE("the radial profile integrates to the total diffuse reflectance") {
 TEST_CASE("the total diffuse reflectance reproduces the issue's frozen values") {
     // Recomputed independently with mpmath (tests/data/gen_dipole.py prints them): with A = 2.602064 exactly,
     // R_d(0.5) = 0.07450687658, R_d(0.9) = 0.2991291755, R_d(0.99) = 0.6445255082, R_d(1) = 1: checked to 1e-10
-    // (the closed form in double is good to ~1e-16). The issue's 6-digit values agree to 1e-6 (its 0.644525 is
-    // 0.6445255082 truncated, not rounded).
+    // (the closed form in double is good to ~1e-16). The frozen 6-digit values agree to 1e-6 (0.644525 is
+    // 0.6445255082 truncated, not rounded; docs/physics.md section 9).
     const DipoleBoundary<double> b{1.3, 2.602064};
     CHECK(std::fabs(total_diffuse_reflectance(0.5, b) - 0.07450687658) <= 1e-10);
     CHECK(std::fabs(total_diffuse_reflectance(0.9, b) - 0.2991291755) <= 1e-10);
@@ -137,7 +137,7 @@ TEST_CASE("the total diffuse reflectance reproduces the issue's frozen values") 
     CHECK(std::fabs(total_diffuse_reflectance(0.9, b) - 0.299129) <= 1e-6);
     CHECK(std::fabs(total_diffuse_reflectance(0.99, b) - 0.644525) <= 1e-6);
     CHECK(total_diffuse_reflectance(1.0, b) == 1.0);
-    // The inverse: the issue's 8-digit values 0.59195420 and 0.97258193 belong to the unrounded fit
+    // The inverse: the frozen 8-digit values 0.59195420 and 0.97258193 belong to the unrounded fit
     // (A = 2.6020643879); with A = 2.602064 exactly mpmath gives 0.591954194 and 0.972581922.
     CHECK(std::fabs(alpha_prime_from_reflectance(0.1, 1.3) - 0.59195420) <= 5e-9);
     CHECK(std::fabs(alpha_prime_from_reflectance(0.5, 1.3) - 0.97258193) <= 5e-9);
@@ -180,7 +180,7 @@ TEST_CASE("the Jensen fit changes R_d by the amounts stated in dipole.hpp") {
 
 TEST_CASE("the exact inversion is within 1e-15 of mpmath roots on all of [0, 1]") {
     // Reference: bisection in s to 40 digits (gen_dipole.py) on a 201-point grid, geometric approaches to 0 and
-    // 1 (down to Rd = 5e-324 and 1 - 2^-53), for 5 (model, eta) pairs. The issue asks for 1e-12; the Halley
+    // 1 (down to Rd = 5e-324 and 1 - 2^-53), for 5 (model, eta) pairs. 1e-12 is required; the Halley
     // iteration converges to rounding, measured max 2.7e-16 (~1 ulp of numbers near 1). For alpha' < 1/2 the
     // result is also relatively accurate (alpha' = Rd / E(s)): 8 eps relative, measured ~2 eps, down to
     // Rd = 1e-300.

@@ -198,7 +198,7 @@ TEST_CASE("energy: with incident masking only, R + T = 1 - (facet-scattered ligh
     std::mt19937_64 rng(42);
     const int n = 200000;
     for (double sigma : {0.3, 1.0}) {
-        const double mu = std::cos((sigma < 0.5 ? 40 : 60) * pi / 180);  // the issue's two configurations
+        const double mu = std::cos((sigma < 0.5 ? 40 : 60) * pi / 180);  // the two reference configurations
         for (double eta : {1 / 2.5, 1 / 1.4, 1.4, 2.5})
             for (bool from_below : {false, true}) {
                 const RoughDielectric<double> rd(sigma, 1.0, eta, Shadowing::masking_only);
@@ -223,12 +223,12 @@ TEST_CASE("energy: with incident masking only, R + T = 1 - (facet-scattered ligh
                                  << f << " +- " << df << ", 1 - (R + T) = " << 1 - a.reflectance - a.transmittance);
             }
     }
-    // The issue's figures, computed independently: 0.6% at sigma = 0.3, eta = 1.4, 40 deg; 2.9% at sigma = 1, 60 deg.
+    // Independently computed reference figures: 0.6% at sigma = 0.3, eta = 1.4, 40 deg; 2.9% at sigma = 1, 60 deg.
     const RoughDielectric<double> a(0.3, 1.0, 1.4, Shadowing::masking_only), b(1.0, 1.0, 1.4, Shadowing::masking_only);
     const auto ea = a.hemispherical_totals(std::cos(40 * pi / 180)), eb = b.hemispherical_totals(std::cos(60 * pi / 180));
     CHECK(1 - ea.reflectance - ea.transmittance == doctest::Approx(0.006).epsilon(0.1));
     CHECK(1 - eb.reflectance - eb.transmittance == doctest::Approx(0.029).epsilon(0.05));
-    // Physics notes: the facet-level Monte Carlo gives T = 0.9579 +- 0.0005 and the D form 0.9582.
+    // docs/physics.md section 9: the facet-level Monte Carlo gives T = 0.9579 +- 0.0005 and the D form 0.9582.
     CHECK(ea.transmittance == doctest::Approx(0.9582).epsilon(2e-4));
 }
 

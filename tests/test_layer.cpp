@@ -128,7 +128,7 @@ TEST_CASE("a non-absorbing slab between smooth or index-matched boundaries conse
 }
 
 TEST_CASE("albedo exactly 1 is exact, and 1 - Omega -> 0 converges to it monotonically") {
-    // Physics-notes section 6: a plain eigen-solve is off by ~0.2 at Omega = 1; Stam's 0.999999 costs 1e-6.
+    // docs/physics.md section 6: a plain eigen-solve is off by ~0.2 at Omega = 1; Stam's 0.999999 costs 1e-6.
     for (double g : {0.0, 0.8}) {
         double previous = -1;
         for (double om : {1e-6, 1e-9, 1e-12, 0.0}) {

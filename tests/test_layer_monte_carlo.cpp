@@ -59,7 +59,8 @@ constexpr double n_sigma = 4;
 
 // Discretization allowances, measured with the default LayerOptions (rough operators and the beam's entry and
 // exit renormalized to exact hemispherical totals) against runs of 2e6 photons (SE <= 0.00035) at
-// M = 16, 24, 32, 48, for the rough cases below with the reciprocity defects reported in the notes fixed:
+// M = 16, 24, 32, 48, for the rough cases below (after the fix this test found: the rough operators no longer
+// mirror entries by reciprocity for masking-only shadowing, which is not reciprocal):
 // - M = 16: |S_16 - MC| <= 0.00081 and |S_16 - S_48| <= 0.00088 (Stam's skin, transmittance at mu0 = 0.7).
 //   (Without the renormalization, Renormalization::none, 16 ordinates under-resolve the top's refracted lobe
 //   and the transmittance was off by up to 0.006.)
@@ -72,7 +73,7 @@ constexpr double allow_rough_16 = 0.0012, allow_rough_32 = 5e-4;
 constexpr double allow_matched = 3e-4;
 constexpr double allow_bin_16 = 0.0015, allow_bin_32 = 2e-4;
 
-// Set STRATUM_MC_TABLE=1 to print every comparison (the table quoted in the notes).
+// Set STRATUM_MC_TABLE=1 to print every comparison (the measurements summarized above).
 bool print_table() {
     static const bool on = std::getenv("STRATUM_MC_TABLE") != nullptr;
     return on;
@@ -239,7 +240,7 @@ TEST_CASE("index-matched boundaries: the bare slab agrees with the Monte Carlo")
 // transmittance - MC = -0.105, +0.009, -0.055, +0.002, -0.018, -0.001, +0.001, -0.001 at M = 12, 16, ..., 40,
 // subsurface albedo +0.006 at M = 32; with the 2-point clamped version (17:59): subsurface +0.0076 and
 // transmittance -0.0072 at M = 32. Away from the critical angle (n3 = 1.2) the error falls slowly (0.0029,
-// 0.0020, 0.0013, 0.0006 at M = 16, 24, 32, 40). Physics-notes section 6 describes the cure (DISORT's
+// 0.0020, 0.0013, 0.0006 at M = 16, 24, 32, 40). docs/physics.md section 6 describes the cure (DISORT's
 // analytic beam source and intensities at user angles). When it lands this test starts passing: remove
 // should_fail then. Skipped under the sanitizers, whose smaller photon count could let it pass.
 TEST_CASE("smooth boundaries (1 | 1.4 | 1): albedo and transmittance agree with the Monte Carlo" *
@@ -248,8 +249,8 @@ TEST_CASE("smooth boundaries (1 | 1.4 | 1): albedo and transmittance agree with 
     compare_fluxes("smooth", layer, {allow_rough_16, allow_rough_32}, 1400);
 }
 
-// The same smooth layer with the interpolation error bounded rather than excluded: the issue asks that the
-// documented interpolation's error be measured. At M = 16 and 32 the worst measured deviations are 0.0092
+// The same smooth layer with the interpolation error bounded rather than excluded: the documented
+// interpolation's error is measured and held to a bound. At M = 16 and 32 the worst measured deviations are 0.0092
 // (transmittance) and 0.0030 (subsurface albedo), with 2e6 photons (SE 0.0003): the bound is 0.012, the measured
 // worst case plus 4 SE. (It is erratic in M -- see above -- so the bound holds for these M only.)
 TEST_CASE("smooth boundaries (1 | 1.4 | 1): the beam interpolation error stays within its measured bound") {

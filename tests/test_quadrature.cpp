@@ -114,7 +114,7 @@ void print_errors(const char* label, const char* type, const RuleErrors<Real>& e
 // Tolerance: the computed values carry < 0.1 ulp of error before the final rounding (measured with the
 // generator's report mode), so each lands on the correctly rounded value or, when the exact value lies
 // within 0.1 ulp of a rounding midpoint, on its neighbour: max 1 ulp, and a mean far below 1 (a method
-// off by one ulp everywhere would fail the mean). The issue asks for 2 ulp (nodes) and 4 ulp (weights).
+// off by one ulp everywhere would fail the mean). The requirement is 2 ulp (nodes) and 4 ulp (weights).
 template <class Real>
 void check_errors(const RuleErrors<Real>& e) {
     CHECK(e.nodes.max <= 1);
