@@ -124,7 +124,7 @@ TEST_CASE("the radial profile integrates to the total diffuse reflectance") {
     MESSAGE("integral identity: max relative error " << worst);
 }
 
-TEST_CASE("the total diffuse reflectance reproduces the issue's frozen values") {
+TEST_CASE("the total diffuse reflectance reproduces the frozen reference values") {
     // Recomputed independently with mpmath (tests/data/gen_dipole.py prints them): with A = 2.602064 exactly,
     // R_d(0.5) = 0.07450687658, R_d(0.9) = 0.2991291755, R_d(0.99) = 0.6445255082, R_d(1) = 1: checked to 1e-10
     // (the closed form in double is good to ~1e-16). The frozen 6-digit values agree to 1e-6 (0.644525 is
