@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "test_util.hpp"
@@ -373,6 +374,61 @@ TEST_CASE("delta samples at subnormal cosines are discarded, never inf (found by
     const auto n = RoughDielectric<double>(0.3, 1.2, 1.2).sample(Vec3<double>{1.0, 0.0, std::numeric_limits<double>::min()}, 0.5, 0.5, 0.5);
     CHECK(n.valid());
     CHECK(std::isfinite(n.value));
+}
+
+// Unpolarized Fresnel reflectance of a dielectric for cos(incidence) c and relative index n (Born & Wolf),
+// written out here so that the test does not share code with fresnel.hpp; g - c = (n - 1)(n + 1) / (g + c)
+// keeps the relative accuracy for n near 1.
+double fresnel_closed_form(double c, double n) {
+    const double g = std::sqrt((n - 1) * (n + 1) + c * c);
+    const double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
+    return 0.5 * a * a * (1 + b * b);
+}
+
+TEST_CASE("a BRDF that exceeds the range at a grazing direction saturates; below that it is exact (found by fuzz_pointwise)") {
+    // Masking-only shadowing, wi = normal: r = F(c) D(h) G1(wi) / (4 mu_o) with G1(normal) = 1 and h at 45
+    // degrees (to within mu_o), D(h) = 2 exp(-1 / (2 sigma^2)) / (pi sigma^2) (Beckmann with RMS slope sigma,
+    // docs/physics.md section 4: tan = 1, cos^4 = 1/4): it
+    // grows like 1 / mu_o without bound. The fuzzer's input (sigma 2.87, n 10 | 9.99999727, wo.z = 1.39e-309)
+    // gave inf: G2 / (mu_i mu_o) alone overflowed although F D / (4 mu_o) = 5e293 does not.
+    const double sigma = 2.87;
+    const double D45 = 2 * std::exp(-1 / (2 * sigma * sigma)) / (pi * sigma * sigma);
+    for (const double eta_t : {9.99999727, 15.0}) {
+        const RoughDielectric<double> rd(sigma, 10.0, eta_t, Shadowing::masking_only);
+        const double F45 = fresnel_closed_form(std::sqrt(0.5), eta_t / 10.0);
+        for (const double mu_o : {1e-200, 1e-300, 1.39e-309, 5e-324}) {
+            const Vec3<double> wi{-0.0, 0.0, 1.0}, wo{1.0, 1.3e-178, mu_o};
+            const double expected = F45 * D45 / 4 / mu_o;  // inf where the exact value is beyond double's range
+            INFO("n " << eta_t << " mu_o " << mu_o << " expected " << expected);
+            const double r = rd.eval(wi, wo);
+            if (std::isfinite(expected))
+                CHECK(r == doctest::Approx(expected).epsilon(1e-12));
+            else
+                CHECK(r == std::numeric_limits<double>::max());
+        }
+    }
+    // A grazing mirror pair at cosine mu, h = normal: D = 1 / (2 pi sigma^2), F -> 1, Lambda(mu) -> sigma / (sqrt(2 pi) mu)
+    // (relative corrections O(mu / sigma)). Height-correlated r = D / (4 mu^2 (1 + 2 Lambda)) -> 1 / (8 sqrt(2 pi) sigma^3 mu),
+    // masking-only twice that, separable r = D / (4 mu^2 (1 + Lambda)^2) -> 1 / (4 sigma^4). Below mu ~ 1e-162 (double)
+    // or 1e-23 (float) |wi + wo|^2 underflows: the half vector is undefined and the value 0 (degenerate input).
+    const double s = 1e-3;
+    const double hc = 1 / (8 * std::sqrt(2 * pi) * s * s * s);
+    const std::pair<Shadowing, double> forms[] = {{Shadowing::height_correlated, hc}, {Shadowing::masking_only, 2 * hc}, {Shadowing::separable, 0}};
+    for (const auto& [form, coefficient] : forms) {
+        const RoughDielectric<double> narrow(s, 1.0, 1.5, form);
+        const RoughDielectric<float> narrow_f(1e-3f, 1.0f, 1.5f, form);
+        for (const double mu : {1e-30, 1e-150}) {
+            const double expected = form == Shadowing::separable ? 1 / (4 * s * s * s * s) : coefficient / mu;
+            CHECK(narrow.eval(Vec3<double>{1.0, 0.0, mu}, Vec3<double>{-1.0, 0.0, mu}) == doctest::Approx(expected).epsilon(1e-12));
+        }
+        const float mu_f = 1e-15f;
+        const double expected_f = form == Shadowing::separable ? 1 / (4 * s * s * s * s) : coefficient / double(mu_f);
+        CHECK(narrow_f.eval(Vec3<float>{1.0f, 0.0f, mu_f}, Vec3<float>{-1.0f, 0.0f, mu_f}) == doctest::Approx(expected_f).epsilon(1e-5));
+        CHECK(narrow.eval(Vec3<double>{1.0, 0.0, 1e-170}, Vec3<double>{-1.0, 0.0, 1e-170}) == 0.0);
+    }
+    // Masking-only in float: 1 / mu_o beyond float's range, computed in double and saturated.
+    const RoughDielectric<float> masking_f(2.87f, 10.0f, 15.0f, Shadowing::masking_only);
+    CHECK(masking_f.eval(Vec3<float>{0.0f, 0.0f, 1.0f}, Vec3<float>{1.0f, 0.0f, 1e-44f}) == std::numeric_limits<float>::max());
 }
 
 TEST_CASE("hemispherical totals at cosines down to the smallest normal double are the grazing limit (found by fuzz_pointwise)") {

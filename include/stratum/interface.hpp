@@ -12,6 +12,9 @@
 //   int f(wi, wo) |wo.z| dwo over wo's hemisphere (power fractions; the BTDF carries the radiance factor
 //   eta_o^2 / eta_i^2 of Walter et al. 2007, so no further factor appears in these integrals).
 // - Degenerate input (a direction on the horizon, a refraction configuration no facet can produce) gives 0.
+// - Where the exact BRDF/BTDF exceeds Real's range (it diverges like 1 / cos at some grazing directions: a
+//   masking-only BRDF as wo.z -> 0) it saturates at the largest finite value. A grazing pair whose half
+//   vector underflows (|wi + wo|^2 = 0 in Real) is degenerate input, too: 0.
 //
 // Microfacet model (Stam 2001 Section 4, corrected as in docs/physics.md sections 4 and 9; Walter et al. 2007 form):
 //   brdf  r(i, o) = F(i.h, eta_t/eta_i) D(h) G2(i, o) / (4 |i.z| |o.z|),                  h = normalize(i + o)
@@ -221,8 +224,9 @@ public:
         const Real D = distribution_.D(h);
         if (!(D > 0)) return Real(0);  // (spares the Lambdas, and 0 * inf at grazing directions)
         const Real F = fresnel_dielectric(c, eta_t / eta_i);
+        if (!(F > 0)) return Real(0);  // (and 0 * inf where the cosines are subnormal)
         using W = detail::wide_t<Real>;
-        return static_cast<Real>(static_cast<W>(F) * static_cast<W>(D) * g2_over_cosines(wi.z, wo.z, false) / 4);
+        return detail::saturate_to<Real>(times_g2_over_cosines(static_cast<W>(F) * static_cast<W>(D) / 4, wi.z, wo.z, false));
     }
 
     /// BTDF t(wi, wo) for wi, wo in opposite hemispheres (light from wi's medium into wo's medium); 0 for
@@ -247,12 +251,14 @@ public:
         const Real D = distribution_.D(h);
         if (!(D > 0)) return Real(0);  // (spares the Lambdas, and 0 * inf at grazing directions)
         const Real F = fresnel_dielectric(ci, eta_o / eta_i);
+        if (!(F < 1)) return Real(0);  // facet total internal reflection (and 0 * inf at subnormal cosines)
         // (eta_i (i.h) + eta_o (o.h))^2 == |v|^2, since h = +-v / |v|. The product in the wide type: for float
         // its factors can leave float's range at grazing directions although the value does not.
         using W = detail::wide_t<Real>;
         const W eo = eta_o;
-        return static_cast<Real>(static_cast<W>(ci) * static_cast<W>(-co) * eo * eo * static_cast<W>(1 - F) *
-                                 static_cast<W>(D) * g2_over_cosines(wi.z, -wo.z, true) / static_cast<W>(len2));
+        const W factor = static_cast<W>(ci) * static_cast<W>(-co) * eo * eo * static_cast<W>(1 - F) * static_cast<W>(D) /
+                         static_cast<W>(len2);
+        return detail::saturate_to<Real>(times_g2_over_cosines(factor, wi.z, -wo.z, true));
     }
 
     /// brdf or btdf, whichever the hemispheres of wi and wo call for.
@@ -425,13 +431,16 @@ private:
         return out;
     }
 
-    // G2 / (mu_i mu_o) for cosines mu_i, mu_o (both > 0, already on their own sides), in the wide type: G2
-    // vanishes like the cosines at grazing directions, and the quotient stays finite where mu_i mu_o (or its
-    // reciprocal) leaves float's range (e.g. 1e-13 * 1e-30); divided one cosine at a time for the same reason.
-    STRATUM_HOST_DEVICE detail::wide_t<Real> g2_over_cosines(Real mu_i, Real mu_o, bool transmission) const noexcept {
+    // factor G2 / (mu_i mu_o) for cosines mu_i, mu_o (both > 0, already on their own sides), in the wide type.
+    // G2 vanishes like the cosines at grazing directions, so G2 / mu_i stays bounded; the factor multiplies
+    // before the last division so that a small factor keeps the value finite where 1 / mu_o alone would not
+    // be (a subnormal mu_o), and mu_i mu_o (or its reciprocal) is never formed (it leaves float's range).
+    STRATUM_HOST_DEVICE detail::wide_t<Real> times_g2_over_cosines(detail::wide_t<Real> factor, Real mu_i, Real mu_o,
+                                                                   bool transmission) const noexcept {
         using W = detail::wide_t<Real>;
         const W li = distribution_.Lambda(mu_i), lo = distribution_.Lambda(mu_o);
-        return detail::smith_g2<W>(li, lo, shadowing_, transmission) / static_cast<W>(mu_i) / static_cast<W>(mu_o);
+        const W g2_over_mu_i = detail::smith_g2<W>(li, lo, shadowing_, transmission) / static_cast<W>(mu_i);
+        return factor * g2_over_mu_i / static_cast<W>(mu_o);
     }
 
     Real sigma_;

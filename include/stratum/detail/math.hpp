@@ -34,6 +34,15 @@ inline constexpr W sqrt_pi_v = W(1.772453850905516027298167483341145183L);
 template <class Real>
 using wide_t = std::conditional_t<(sizeof(Real) < sizeof(double)), double, Real>;
 
+/// w rounded to Real, with values beyond Real's range saturated at its largest finite value (NaN stays
+/// NaN). For densities that diverge where a cosine vanishes (a microfacet BRDF at a grazing direction):
+/// the exact value may exceed Real's range there although its product with that cosine does not.
+template <class Real, class W>
+STRATUM_HOST_DEVICE Real saturate_to(W w) noexcept {
+    constexpr Real largest = std::numeric_limits<Real>::max();
+    return w > static_cast<W>(largest) ? largest : static_cast<Real>(w);
+}
+
 /// T in a context where it is not deduced, so that arguments convert to it (a RoughDielectric to a
 /// Boundary in solve_layer) instead of taking part in template argument deduction.
 template <class T>
