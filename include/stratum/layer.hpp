@@ -123,6 +123,41 @@ private:
     SmoothDielectric<Real> smooth_;  // the indices; the specular model when not rough
 };
 
+/// A boundary with its operators built for one discretization: LayerOptions::ordinates, ::modes (0: 2M) and
+/// ::renormalization. They depend on the face alone, never on the slab, and are most of a rough-faced solve's cost:
+/// prepare the faces once and pass them to solve_layer / solve_stack for every slab (an edit of albedo, g or
+/// thickness, another wavelength), which then pays for the slab alone. The result is identical to a solve from
+/// the plain Boundary, bit for bit, when the request solves all the prepared modes; a request for fewer
+/// (LayerRequest::max_modes, the ambient term alone) uses the prepared operators, whose azimuthal rule resolves
+/// more modes than it needs: equal within that rule's error (1e-12). A specular (smooth or index-matched) face has cheap operators and keeps none: they are built
+/// at each solve. Immutable; copies share the operators; usable from several threads at once.
+template <class Real = double>
+class PreparedBoundary {
+public:
+    /// Throws std::invalid_argument for options.ordinates < 1 or options.modes < 0.
+    explicit PreparedBoundary(const Boundary<Real>& boundary, const LayerOptions& options = {})
+        : boundary_(boundary), options_(options) {
+        detail::require_count("options.ordinates", options.ordinates, 1);
+        detail::require_count("options.modes", options.modes, 0);
+        if (!boundary.rough()) return;
+        const int modes = options.modes > 0 ? options.modes : 2 * options.ordinates;
+        operators_ = std::make_shared<const InterfaceOperators<Real>>(
+            boundary.operators(gauss_legendre_half<Real>(options.ordinates), modes, options));
+    }
+
+    const Boundary<Real>& boundary() const noexcept { return boundary_; }
+    /// The options the operators were built for (a solve must use the same ordinates and renormalization, and
+    /// at most as many modes).
+    const LayerOptions& options() const noexcept { return options_; }
+    /// The prepared operators; null for a specular face.
+    const std::shared_ptr<const InterfaceOperators<Real>>& operators() const noexcept { return operators_; }
+
+private:
+    Boundary<Real> boundary_;
+    LayerOptions options_;
+    std::shared_ptr<const InterfaceOperators<Real>> operators_;
+};
+
 template <class Real>
 class LayeredSurface;
 
@@ -134,6 +169,13 @@ template <class Real>
 LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& top, const std::vector<Slab<Real>>& slabs,
                                  const std::vector<Boundary<Real>>& interior,
                                  const detail::non_deduced_t<Boundary<Real>>& bottom, const LayerOptions& options = {},
+                                 const detail::non_deduced_t<LayerRequest<Real>>& request = {});
+
+/// The same solve from prepared boundaries (PreparedBoundary): their operators are reused, and the discretization
+/// is theirs (they must all have been prepared with the same LayerOptions; std::invalid_argument otherwise).
+template <class Real>
+LayeredSurface<Real> solve_stack(const PreparedBoundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                 const std::vector<PreparedBoundary<Real>>& interior, const PreparedBoundary<Real>& bottom,
                                  const detail::non_deduced_t<LayerRequest<Real>>& request = {});
 
 namespace detail {
@@ -291,11 +333,22 @@ void make_semi_infinite_if_opaque(SlabModes<Real>& p, const Quadrature<Real>& q,
                                                    std::numeric_limits<Real>::infinity());
 }
 
+/// A face's operators on the ordinates, shared between solves (PreparedBoundary) or owned by one.
+template <class Real>
+using SharedOperators = std::shared_ptr<const InterfaceOperators<Real>>;
+
+/// The operators a caller prepared (PreparedBoundary), for the faces of one solve; null: built by the solve.
+template <class Real>
+struct PreparedOperators {
+    SharedOperators<Real> top, bottom;
+    std::vector<SharedOperators<Real>> interior;  // empty, or one per interior face
+};
+
 /// Everything below the top face, ready for the per-mode adding (stack_mode).
 template <class Real>
 struct PreparedStack {
     std::vector<SlabModes<Real>> slabs;              // delta-M scaled, with their phase matrices (prepare_slab)
-    std::vector<InterfaceOperators<Real>> interior;  // the interior faces' operators on the ordinates
+    std::vector<SharedOperators<Real>> interior;     // the interior faces' operators on the ordinates
     bool any_rough = false;                          // a rough boundary anywhere, top and bottom included
 };
 
@@ -309,14 +362,17 @@ template <class Real>
 PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                   const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
                                   const Quadrature<Real>& q, int modes, const LayerOptions& options,
-                                  const LayerRequest<Real>& request) {
+                                  const LayerRequest<Real>& request, const std::vector<SharedOperators<Real>>& prepared) {
     PreparedStack<Real> stack;
     LayerOptions interior_options = options;
     if (interior_options.specular_transmission == SpecularTransmission::automatic)
         interior_options.specular_transmission = SpecularTransmission::flux_conserving;
     stack.any_rough = top.rough() || bottom.rough();
-    for (const Boundary<Real>& b : interior) {
-        stack.interior.push_back(b.operators(q, modes, interior_options));
+    for (std::size_t i = 0; i < interior.size(); ++i) {
+        const Boundary<Real>& b = interior[i];
+        stack.interior.push_back(i < prepared.size() && prepared[i]
+                                     ? prepared[i]
+                                     : std::make_shared<const InterfaceOperators<Real>>(b.operators(q, modes, interior_options)));
         stack.any_rough = stack.any_rough || b.rough();
     }
     const bool shortcut = request.tolerance > 0 && slabs.size() == 1 &&
@@ -354,7 +410,7 @@ StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOper
     s.middle = slab_mode(stack.slabs[0], q, k);
     s.slab_size = diffuse_size(s.middle, q.nodes, stack.slabs[0].slab.optical_thickness());
     for (std::size_t i = 0; i < stack.interior.size(); ++i) {
-        s.middle = add_components(s.middle, interface_component(stack.interior[i], k));
+        s.middle = add_components(s.middle, interface_component(*stack.interior[i], k));
         const ComponentOperators<Real> next = slab_mode(stack.slabs[i + 1], q, k);
         s.slab_size = std::fmax(s.slab_size, diffuse_size(next, q.nodes, stack.slabs[i + 1].slab.optical_thickness()));
         s.middle = add_components(s.middle, next);
@@ -482,11 +538,16 @@ private:
     // The solver behind solve_stack and solve_layer, the public entry points.
     static LayeredSurface solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                 const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
-                                const LayerOptions& options, const LayerRequest<Real>& request);
+                                const LayerOptions& options, const LayerRequest<Real>& request,
+                                const detail::PreparedOperators<Real>& prepared);
     template <class R>
     friend LayeredSurface<R> solve_stack(const detail::non_deduced_t<Boundary<R>>&, const std::vector<Slab<R>>&,
                                          const std::vector<Boundary<R>>&, const detail::non_deduced_t<Boundary<R>>&,
                                          const LayerOptions&, const detail::non_deduced_t<LayerRequest<R>>&);
+    template <class R>
+    friend LayeredSurface<R> solve_stack(const PreparedBoundary<R>&, const std::vector<Slab<R>>&,
+                                         const std::vector<PreparedBoundary<R>>&, const PreparedBoundary<R>&,
+                                         const detail::non_deduced_t<LayerRequest<R>>&);
 
     LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
 
@@ -824,7 +885,7 @@ private:
     }
 
     Boundary<Real> top_, bottom_;
-    std::optional<InterfaceOperators<Real>> top_ops_, bottom_ops_;  // empty when nothing was solved
+    detail::SharedOperators<Real> top_ops_, bottom_ops_;  // null when nothing was solved; shared with PreparedBoundary
     Quadrature<Real> q_;
     int modes_ = 0;
     LayerOutput outputs_ = LayerOutput::all;
@@ -863,7 +924,7 @@ LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& to
                                  const std::vector<Boundary<Real>>& interior,
                                  const detail::non_deduced_t<Boundary<Real>>& bottom, const LayerOptions& options,
                                  const detail::non_deduced_t<LayerRequest<Real>>& request) {
-    return LayeredSurface<Real>::solve(top, slabs, interior, bottom, options, request);
+    return LayeredSurface<Real>::solve(top, slabs, interior, bottom, options, request, {});
 }
 
 // The method (see the top of this file), in its steps:
@@ -880,7 +941,8 @@ LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& to
 template <class Real>
 LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                                  const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
-                                                 const LayerOptions& options, const LayerRequest<Real>& request) {
+                                                 const LayerOptions& options, const LayerRequest<Real>& request,
+                                                 const detail::PreparedOperators<Real>& prepared) {
     detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
     LayeredSurface s(top, bottom);
     s.outputs_ = request.outputs;
@@ -889,10 +951,13 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     const int modes = detail::mode_count(options, request);
     if (modes == 0) return s;
 
-    s.top_ops_.emplace(top.operators(s.q_, modes, options));  // 2.
-    s.bottom_ops_.emplace(bottom.operators(s.q_, modes, options));
+    const auto face = [&](const Boundary<Real>& b, const detail::SharedOperators<Real>& ready) {  // 2.
+        return ready ? ready : std::make_shared<const InterfaceOperators<Real>>(b.operators(s.q_, modes, options));
+    };
+    s.top_ops_ = face(top, prepared.top);
+    s.bottom_ops_ = face(bottom, prepared.bottom);
     const detail::PreparedStack<Real> stack =
-        detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request);
+        detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request, prepared.interior);
     s.exit_top_ = s.top_face().transmittance_at_ordinates();  // 3.
     s.exit_bottom_ = s.bottom_face().transmittance_at_ordinates();
     s.solve_modes(stack, modes, request.tolerance);  // 4.
@@ -1033,6 +1098,52 @@ LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const detail::non_deduc
                                  const detail::non_deduced_t<Boundary<Real>>& bottom, const LayerOptions& options = {},
                                  const detail::non_deduced_t<LayerRequest<Real>>& request = {}) {
     return solve_stack(top, std::vector<Slab<Real>>{slab}, std::vector<Boundary<Real>>{}, bottom, options, request);
+}
+
+namespace detail {
+
+/// Fails unless `options` (those `name` was prepared with) equal `reference` (the top face's) in every field.
+inline void require_same_options(const std::string& name, const LayerOptions& options, const LayerOptions& reference) {
+    const auto differ = [&](const char* field, long long value, long long top) {
+        fail_invalid_argument("stratum: prepared boundaries must share one discretization: " + name +
+                              " was prepared with options." + field + " = " + std::to_string(value) + ", the top with " +
+                              std::to_string(top));
+    };
+    if (options.ordinates != reference.ordinates) differ("ordinates", options.ordinates, reference.ordinates);
+    if (options.modes != reference.modes) differ("modes", options.modes, reference.modes);
+    if (options.delta_m != reference.delta_m) differ("delta_m", options.delta_m, reference.delta_m);
+    if (options.renormalization != reference.renormalization)
+        differ("renormalization", static_cast<long long>(options.renormalization),
+               static_cast<long long>(reference.renormalization));
+    if (options.specular_transmission != reference.specular_transmission)
+        differ("specular_transmission", static_cast<long long>(options.specular_transmission),
+               static_cast<long long>(reference.specular_transmission));
+}
+
+}  // namespace detail
+
+template <class Real>
+LayeredSurface<Real> solve_stack(const PreparedBoundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                 const std::vector<PreparedBoundary<Real>>& interior, const PreparedBoundary<Real>& bottom,
+                                 const detail::non_deduced_t<LayerRequest<Real>>& request) {
+    const LayerOptions& options = top.options();
+    detail::require_same_options("bottom", bottom.options(), options);
+    detail::PreparedOperators<Real> prepared{top.operators(), bottom.operators(), {}};
+    std::vector<Boundary<Real>> faces;
+    for (std::size_t i = 0; i < interior.size(); ++i) {
+        detail::require_same_options("interior[" + std::to_string(i) + "]", interior[i].options(), options);
+        faces.push_back(interior[i].boundary());
+        prepared.interior.push_back(interior[i].operators());
+    }
+    return LayeredSurface<Real>::solve(top.boundary(), slabs, faces, bottom.boundary(), options, request, prepared);
+}
+
+/// Solves one layer between prepared boundaries (see PreparedBoundary and solve_stack).
+template <class Real>
+LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const PreparedBoundary<Real>& top,
+                                 const PreparedBoundary<Real>& bottom,
+                                 const detail::non_deduced_t<LayerRequest<Real>>& request = {}) {
+    return solve_stack(top, std::vector<Slab<Real>>{slab}, std::vector<PreparedBoundary<Real>>{}, bottom, request);
 }
 
 }  // namespace stratum

@@ -1,0 +1,191 @@
+// PreparedBoundary: a solve from prepared boundaries must be the solve from the plain boundaries, to the last
+// bit (the operators are the same, only built earlier), for every kind of face, request and stack; one prepared
+// pair serves many slabs; boundaries prepared for different discretizations are refused by name.
+// One exception, by design: a request that solves fewer modes than were prepared (LayerRequest::max_modes, the
+// ambient term alone) uses operators whose azimuthal rule resolves all the prepared modes, finer than the rule a
+// solve from the plain boundaries builds for its fewer modes: the two agree to that rule's error (<= 1e-12,
+// interface_operators.hpp), not bitwise.
+#include <doctest/doctest.h>
+
+#include <stratum/layer.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+using stratum::Boundary;
+using stratum::LayeredSurface;
+using stratum::LayerOptions;
+using stratum::LayerOutput;
+using stratum::LayerRequest;
+using stratum::PreparedBoundary;
+using stratum::Renormalization;
+using stratum::RoughDielectric;
+using stratum::Shadowing;
+using stratum::Slab;
+using stratum::SmoothDielectric;
+using stratum::Vec3;
+using stratum::solve_layer;
+using stratum::solve_stack;
+
+namespace {
+
+// Every public output of a solved layer at a few directions, in one vector (compared bit for bit).
+std::vector<double> outputs(const LayeredSurface<double>& layer) {
+    const Vec3<double> above[] = {{0.0, 0.0, 1.0}, {0.6, 0.0, 0.8}, {-0.28, 0.96 * 0.6, 0.96 * 0.8 * 0.5}};
+    std::vector<double> v;
+    for (const auto& wi : above)
+        for (const auto& wo : above) {
+            v.push_back(layer.brdf(wi, wo));
+            v.push_back(layer.btdf(wi, {wo.x, wo.y, -wo.z}));
+        }
+    for (const double mu : {1.0, 0.7, 0.8, 0.05}) {
+        v.push_back(layer.reflectance(mu).total());
+        v.push_back(layer.transmittance(mu));
+        v.push_back(layer.direct_transmittance(mu));
+        v.push_back(layer.ambient({0.0, std::sqrt(1 - mu * mu), mu}));
+    }
+    for (const auto& c : layer.mode_operators())
+        for (const auto* m : {&c.reflection_down, &c.transmission_down, &c.reflection_up, &c.transmission_up})
+            v.insert(v.end(), m->begin(), m->end());
+    v.push_back(layer.modes());
+    return v;
+}
+
+bool bit_identical(const std::vector<double>& a, const std::vector<double>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+// Largest difference relative to the largest value (the outputs mix BRDF values and fluxes of similar size).
+double relative_difference(const std::vector<double>& a, const std::vector<double>& b) {
+    if (a.size() != b.size()) return 1;
+    double diff = 0, size = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        diff = std::fmax(diff, std::fabs(a[i] - b[i]));
+        size = std::fmax(size, std::fabs(a[i]));
+    }
+    return diff / size;
+}
+
+// Whether the request solves fewer modes than LayerOptions gives (see the top of this file).
+bool fewer_modes(const LayerRequest<double>& r) { return r.max_modes > 0 || r.outputs == LayerOutput::ambient; }
+
+void check_same(const std::vector<double>& plain, const std::vector<double>& prepared, const LayerRequest<double>& r) {
+    if (fewer_modes(r))
+        CHECK(relative_difference(plain, prepared) <= 1e-12);
+    else
+        CHECK(bit_identical(plain, prepared));
+}
+
+std::vector<LayerRequest<double>> requests() {
+    std::vector<LayerRequest<double>> r(6);
+    r[1].max_modes = 5;
+    r[2].tolerance = 1e-3;
+    r[2].outputs = LayerOutput::subsurface_reflection;
+    r[3].outputs = LayerOutput::ambient;
+    r[4].incidence = {0.8, 1.0};
+    r[5].outputs = LayerOutput::transmission | LayerOutput::operators;
+    return r;
+}
+
+}  // namespace
+
+TEST_CASE("a solve from prepared boundaries is bit-identical to the solve from the boundaries") {
+    LayerOptions options;
+    options.ordinates = 6;
+    const RoughDielectric<double> rough_top(0.3, 1.0, 1.4), rough_bottom(0.5, 1.4, 1.0);
+    const RoughDielectric<double> masking(0.2, 1.4, 1.2, Shadowing::masking_only);
+    const SmoothDielectric<double> smooth_top(1.0, 1.4), smooth_bottom(1.4, 1.0);
+    const std::pair<Boundary<double>, Boundary<double>> faces[] = {
+        {rough_top, rough_bottom}, {rough_top, smooth_bottom}, {smooth_top, rough_bottom},
+        {smooth_top, smooth_bottom}, {rough_top, masking}, {Boundary<double>::index_matched(1.4), rough_bottom}};
+    const Slab<double> slabs[] = {{0.99, 0.8, 2.0}, {1.0, 0.0, 0.5}, {0.6, -0.3, 30.0}};
+    for (const Renormalization renormalization : {Renormalization::hemispherical_totals, Renormalization::none}) {
+        options.renormalization = renormalization;
+        for (const auto& [top, bottom] : faces) {
+            const PreparedBoundary<double> prepared_top(top, options), prepared_bottom(bottom, options);
+            for (const Slab<double>& slab : slabs)
+                for (const LayerRequest<double>& request : requests()) {
+                    INFO("top rough " << top.rough() << ", bottom rough " << bottom.rough() << ", max_modes "
+                                      << request.max_modes << ", tolerance " << request.tolerance);
+                    check_same(outputs(solve_layer(slab, top, bottom, options, request)),
+                               outputs(solve_layer(slab, prepared_top, prepared_bottom, request)), request);
+                }
+        }
+    }
+}
+
+TEST_CASE("a stack from prepared boundaries is bit-identical, interior faces included") {
+    LayerOptions options;
+    options.ordinates = 5;
+    const RoughDielectric<double> top(0.3, 1.0, 1.5), interior(0.4, 1.5, 1.38);
+    const SmoothDielectric<double> smooth_interior(1.38, 1.4), bottom(1.4, 1.0);
+    const std::vector<Slab<double>> slabs = {{0.9, 0.7, 0.5}, {0.99, 0.8, 1.0}, {0.95, 0.9, 4.0}};
+    const std::vector<Boundary<double>> plain = {interior, smooth_interior};
+    const std::vector<PreparedBoundary<double>> prepared = {PreparedBoundary<double>(interior, options),
+                                                           PreparedBoundary<double>(smooth_interior, options)};
+    const PreparedBoundary<double> prepared_top(top, options), prepared_bottom(bottom, options);
+    for (const LayerRequest<double>& request : requests())
+        check_same(outputs(solve_stack<double>(top, slabs, plain, bottom, options, request)),
+                   outputs(solve_stack(prepared_top, slabs, prepared, prepared_bottom, request)), request);
+}
+
+TEST_CASE("prepared boundaries keep their operators for every slab and are not rebuilt") {
+    LayerOptions options;
+    options.ordinates = 4;
+    const PreparedBoundary<double> top(RoughDielectric<double>(0.3, 1.0, 1.4), options);
+    const PreparedBoundary<double> bottom(RoughDielectric<double>(0.3, 1.4, 1.0), options);
+    REQUIRE(top.operators() != nullptr);
+    CHECK(top.operators()->modes() == 2 * options.ordinates);
+    CHECK(top.operators()->size() == options.ordinates);
+    const auto* built = top.operators().get();
+    for (const double albedo : {0.5, 0.9, 1.0}) {
+        const Slab<double> slab(albedo, 0.8, 1.0);
+        CHECK(bit_identical(outputs(solve_layer(slab, top, bottom)),
+                            outputs(solve_layer(slab, top.boundary(), bottom.boundary(), options))));
+    }
+    CHECK(top.operators().get() == built);
+    // A specular face keeps none: its operators are O(K M) to build.
+    CHECK(PreparedBoundary<double>(SmoothDielectric<double>(1.0, 1.4), options).operators() == nullptr);
+    CHECK(PreparedBoundary<double>(RoughDielectric<double>(0.0, 1.0, 1.4), options).operators() == nullptr);
+}
+
+TEST_CASE("boundaries prepared for different discretizations are refused, naming the face and the option") {
+    LayerOptions a, b;
+    a.ordinates = 4;
+    b.ordinates = 6;
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    CHECK_THROWS_WITH_AS(solve_layer(slab, PreparedBoundary<double>(top, a), PreparedBoundary<double>(bottom, b)),
+                         doctest::Contains("bottom was prepared with options.ordinates = 6, the top with 4"),
+                         std::invalid_argument);
+    LayerOptions c = a;
+    c.renormalization = Renormalization::none;
+    CHECK_THROWS_WITH_AS(solve_layer(slab, PreparedBoundary<double>(top, a), PreparedBoundary<double>(bottom, c)),
+                         doctest::Contains("renormalization"), std::invalid_argument);
+    LayerOptions d = a;
+    d.delta_m = false;
+    const std::vector<PreparedBoundary<double>> interior = {PreparedBoundary<double>(SmoothDielectric<double>(1.4, 1.4), d)};
+    CHECK_THROWS_WITH_AS(solve_stack(PreparedBoundary<double>(top, a), std::vector<Slab<double>>{slab, slab}, interior,
+                                     PreparedBoundary<double>(bottom, a)),
+                         doctest::Contains("interior[0] was prepared with options.delta_m"), std::invalid_argument);
+    LayerOptions bad;
+    bad.ordinates = 0;
+    CHECK_THROWS_WITH_AS(PreparedBoundary<double>(top, bad), doctest::Contains("options.ordinates"), std::invalid_argument);
+    bad.ordinates = 4;
+    bad.modes = -1;
+    CHECK_THROWS_WITH_AS(PreparedBoundary<double>(top, bad), doctest::Contains("options.modes"), std::invalid_argument);
+}
+
+TEST_CASE("prepared boundaries in float") {
+    LayerOptions options;
+    options.ordinates = 4;
+    const RoughDielectric<float> top(0.3f, 1.0f, 1.4f), bottom(0.3f, 1.4f, 1.0f);
+    const Slab<float> slab(0.9f, 0.5f, 1.0f);
+    const auto a = solve_layer(slab, PreparedBoundary<float>(top, options), PreparedBoundary<float>(bottom, options));
+    const auto b = solve_layer<float>(slab, top, bottom, options);
+    CHECK(a.reflectance(0.5f).total() == b.reflectance(0.5f).total());
+    CHECK(a.transmittance(0.5f) == b.transmittance(0.5f));
+}
