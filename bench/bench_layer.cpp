@@ -21,6 +21,52 @@ void BM_layer_solve_full(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_solve_full)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
+// The same solve from faces prepared once (PreparedBoundary): what a new albedo, g, thickness or wavelength costs.
+// The albedo changes every iteration so that nothing but the faces is reused.
+void BM_layer_solve_full_prepared(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    const stratum::PreparedBoundary<Real> top(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options);
+    const stratum::PreparedBoundary<Real> bottom(stratum::RoughDielectric<Real>(0.3, 1.4, 1.0), options);
+    Real albedo = 0.9;
+    for (auto _ : state) {
+        albedo = albedo == 0.9 ? 0.91 : 0.9;
+        benchmark::DoNotOptimize(stratum::solve_layer(stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5), top, bottom));
+    }
+}
+BENCHMARK(BM_layer_solve_full_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
+// Preparing the two faces (their operators; the entry tables are built on first evaluation).
+void BM_layer_prepare_faces(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(stratum::PreparedBoundary<Real>(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options));
+        benchmark::DoNotOptimize(stratum::PreparedBoundary<Real>(stratum::RoughDielectric<Real>(0.3, 1.4, 1.0), options));
+    }
+}
+BENCHMARK(BM_layer_prepare_faces)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
+// Solve plus the first reflectance(mu) evaluation, which tabulates the top face's entry transmittance: from
+// plain faces every solve pays for the table, from prepared faces only the first.
+void BM_layer_solve_and_first_reflectance(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = 16;
+    const stratum::RoughDielectric<Real> rough_top(0.3, 1.0, 1.4), rough_bottom(0.3, 1.4, 1.0);
+    const stratum::PreparedBoundary<Real> top(rough_top, options), bottom(rough_bottom, options);
+    const bool prepared = state.range(0) == 1;
+    Real albedo = 0.9;
+    for (auto _ : state) {
+        albedo = albedo == 0.9 ? 0.91 : 0.9;
+        const auto slab = stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5);
+        const auto layer = prepared ? stratum::solve_layer(slab, top, bottom)
+                                    : stratum::solve_layer(slab, rough_top, rough_bottom, options);
+        benchmark::DoNotOptimize(layer.reflectance(0.7).total());
+    }
+    state.SetLabel(prepared ? "prepared faces, M = 16" : "plain faces, M = 16");
+}
+BENCHMARK(BM_layer_solve_and_first_reflectance)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 // Reflection only, modes chosen by a tolerance of 1e-3.
 void BM_layer_solve_reflection_tol1e3(benchmark::State& state) {
     stratum::LayerRequest<Real> r;

@@ -142,3 +142,16 @@ TEST_CASE("threads solving layers at once get the single-threaded solution") {
     const auto results = run_concurrently([] { return evaluate_layer(skin_layer()); });
     for (const auto& r : results) CHECK(same_bits(r, reference));
 }
+
+TEST_CASE("threads solving and evaluating layers from one pair of PreparedBoundary share it safely") {
+    const std::vector<double> reference = evaluate_layer(skin_layer());
+    LayerOptions options;
+    options.ordinates = 4;
+    // Fresh prepared faces: the threads race to build the shared lazily tabulated transmittance.
+    const stratum::PreparedBoundary<double> top(RoughDielectric<double>(0.3, 1.0, 1.4), options);
+    const stratum::PreparedBoundary<double> bottom(RoughDielectric<double>(0.3, 1.4, 1.0), options);
+    const auto results = run_concurrently([&] {
+        return evaluate_layer(stratum::solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), top, bottom));
+    });
+    for (const auto& r : results) CHECK(same_bits(r, reference));
+}

@@ -123,6 +123,76 @@ private:
     SmoothDielectric<Real> smooth_;  // the indices; the specular model when not rough
 };
 
+namespace detail {
+
+/// A function of mu in (0, 1] tabulated at N + 1 points equispaced in t = sqrt(mu) and interpolated by cubic
+/// Lagrange polynomials in t on the 4 nearest points: the hemispherical transmittance of a rough boundary,
+/// which costs a 2-D integral per value and changes fastest near grazing (its limit at mu -> 0+ differs from
+/// its value at mu = 0, which is the point t = 0 is given instead). Error: tests/test_layer.cpp measures it.
+template <class Real>
+struct MuTable {
+    std::vector<Real> values;  // f((j / N)^2), j = 0..N (j = 0: the limit mu -> 0+)
+    template <class F>
+    void build(int intervals, F f) {
+        values.resize(static_cast<std::size_t>(intervals) + 1);
+        for (int j = 0; j <= intervals; ++j) {
+            const Real t = Real(j) / Real(intervals);
+            values[static_cast<std::size_t>(j)] = f(j == 0 ? Real(1e-12) : t * t);
+        }
+    }
+    Real operator()(Real mu) const noexcept {
+        const int n = static_cast<int>(values.size()) - 1;
+        const Real x = std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))) * Real(n);  // in units of 1 / N
+        Real w[4];
+        const LagrangeWindow window = lagrange_weights(Points{}, n + 1, x, 4, w);
+        Real sum = 0;
+        for (int a = 0; a < 4; ++a) sum += w[a] * values[static_cast<std::size_t>(window.first + a)];
+        return sum;
+    }
+
+private:
+    struct Points {  // the table's points t_j = j / N, in units of 1 / N
+        Real operator[](std::size_t j) const noexcept { return static_cast<Real>(j); }
+    };
+};
+
+/// The directional-hemispherical transmittance of a boundary for light arriving at |cosine| mu from one side (the
+/// outside of a layer: above a top face, below a bottom face). A rough face's 2-D integral is tabulated on first
+/// use (MuTable, 64 intervals; std::call_once keeps it thread-safe) and shared by every layer solved with one
+/// PreparedBoundary, so only the first evaluation pays for it. Exact below the first table interval, for a
+/// specular face, and for light from a denser medium: there T(mu) has an onset at the critical cosine, as steep as
+/// sigma is small, which no polynomial table resolves (found by fuzz_layer: n 1.88 | 0.50, sigma 7e-5, mu 0.996
+/// gave a transmittance 12% above the entering flux).
+template <class Real>
+class EntryTransmittance {
+public:
+    EntryTransmittance(const Boundary<Real>& boundary, Incidence side) : boundary_(boundary), side_(side) {}
+
+    Real operator()(Real mu) const {
+        const bool from_above = side_ == Incidence::from_above;
+        const Real signed_mu = from_above ? mu : -mu;
+        const Real eta_outside = from_above ? boundary_.eta_above() : boundary_.eta_below();
+        const Real eta_inside = from_above ? boundary_.eta_below() : boundary_.eta_above();
+        if (!boundary_.rough() || eta_outside > eta_inside || mu < grazing)
+            return boundary_.hemispherical_transmittance(signed_mu);
+        std::call_once(once_, [this, from_above] {
+            table_.build(intervals, [&](Real x) { return boundary_.hemispherical_transmittance(from_above ? x : -x); });
+        });
+        const Real t = table_(mu);
+        return t < 0 ? Real(0) : t;
+    }
+
+private:
+    static constexpr int intervals = 64;
+    static constexpr Real grazing = Real(1) / Real(intervals * intervals);  // below the first table interval
+    Boundary<Real> boundary_;
+    Incidence side_;
+    mutable std::once_flag once_;
+    mutable MuTable<Real> table_;
+};
+
+}  // namespace detail
+
 /// A boundary with its operators built for one discretization: LayerOptions::ordinates, ::modes (0: 2M) and
 /// ::renormalization. They depend on the face alone, never on the slab, and are most of a rough-faced solve's cost:
 /// prepare the faces once and pass them to solve_layer / solve_stack for every slab (an edit of albedo, g or
@@ -136,7 +206,9 @@ class PreparedBoundary {
 public:
     /// Throws std::invalid_argument for options.ordinates < 1 or options.modes < 0.
     explicit PreparedBoundary(const Boundary<Real>& boundary, const LayerOptions& options = {})
-        : boundary_(boundary), options_(options) {
+        : boundary_(boundary), options_(options),
+          from_above_(std::make_shared<const detail::EntryTransmittance<Real>>(boundary, Incidence::from_above)),
+          from_below_(std::make_shared<const detail::EntryTransmittance<Real>>(boundary, Incidence::from_below)) {
         detail::require_count("options.ordinates", options.ordinates, 1);
         detail::require_count("options.modes", options.modes, 0);
         if (!boundary.rough()) return;
@@ -151,11 +223,17 @@ public:
     const LayerOptions& options() const noexcept { return options_; }
     /// The prepared operators; null for a specular face.
     const std::shared_ptr<const InterfaceOperators<Real>>& operators() const noexcept { return operators_; }
+    /// The hemispherical transmittance of light arriving from `side`, tabulated on first use for a rough face
+    /// (for the solver: the layers solved with this face share the table).
+    const std::shared_ptr<const detail::EntryTransmittance<Real>>& entry_transmittance(Incidence side) const noexcept {
+        return side == Incidence::from_above ? from_above_ : from_below_;
+    }
 
 private:
     Boundary<Real> boundary_;
     LayerOptions options_;
     std::shared_ptr<const InterfaceOperators<Real>> operators_;
+    std::shared_ptr<const detail::EntryTransmittance<Real>> from_above_, from_below_;
 };
 
 template <class Real>
@@ -218,37 +296,6 @@ SlabModes<Real> prepare_slab(const Slab<Real>& s, const Quadrature<Real>& q, int
     return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
             phase_fourier_matrices(hg.legendre_moments(moments), q.nodes, modes)};
 }
-
-/// A function of mu in (0, 1] tabulated at N + 1 points equispaced in t = sqrt(mu) and interpolated by cubic
-/// Lagrange polynomials in t on the 4 nearest points: the hemispherical transmittance of a rough boundary,
-/// which costs a 2-D integral per value and changes fastest near grazing (its limit at mu -> 0+ differs from
-/// its value at mu = 0, which is the point t = 0 is given instead). Error: tests/test_layer.cpp measures it.
-template <class Real>
-struct MuTable {
-    std::vector<Real> values;  // f((j / N)^2), j = 0..N (j = 0: the limit mu -> 0+)
-    template <class F>
-    void build(int intervals, F f) {
-        values.resize(static_cast<std::size_t>(intervals) + 1);
-        for (int j = 0; j <= intervals; ++j) {
-            const Real t = Real(j) / Real(intervals);
-            values[static_cast<std::size_t>(j)] = f(j == 0 ? Real(1e-12) : t * t);
-        }
-    }
-    Real operator()(Real mu) const noexcept {
-        const int n = static_cast<int>(values.size()) - 1;
-        const Real x = std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))) * Real(n);  // in units of 1 / N
-        Real w[4];
-        const LagrangeWindow window = lagrange_weights(Points{}, n + 1, x, 4, w);
-        Real sum = 0;
-        for (int a = 0; a < 4; ++a) sum += w[a] * values[static_cast<std::size_t>(window.first + a)];
-        return sum;
-    }
-
-private:
-    struct Points {  // the table's points t_j = j / N, in units of 1 / N
-        Real operator[](std::size_t j) const noexcept { return static_cast<Real>(j); }
-    };
-};
 
 /// Largest entry of a slab's diffuse operators: R, and T without its unscattered diagonal e^{-tau/mu}.
 template <class Real>
@@ -342,6 +389,7 @@ template <class Real>
 struct PreparedOperators {
     SharedOperators<Real> top, bottom;
     std::vector<SharedOperators<Real>> interior;  // empty, or one per interior face
+    std::shared_ptr<const EntryTransmittance<Real>> top_entry, bottom_entry;  // light from outside the layer
 };
 
 /// Everything below the top face, ready for the per-mode adding (stack_mode).
@@ -549,7 +597,10 @@ private:
                                          const std::vector<PreparedBoundary<R>>&, const PreparedBoundary<R>&,
                                          const detail::non_deduced_t<LayerRequest<R>>&);
 
-    LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
+    LayeredSurface(Boundary<Real> top, Boundary<Real> bottom)
+        : top_(std::move(top)), bottom_(std::move(bottom)),
+          top_entry_(std::make_shared<const detail::EntryTransmittance<Real>>(top_, Incidence::from_above)),
+          bottom_entry_(std::make_shared<const detail::EntryTransmittance<Real>>(bottom_, Incidence::from_below)) {}
 
     // The steps of solve() that fill the layer (defined after it, at the end of this file).
     void solve_modes(const detail::PreparedStack<Real>& stack, int modes, Real tolerance);
@@ -592,16 +643,9 @@ private:
             const Real r = n_out / n_in;
             return std::sqrt((Real(1) - r) * (Real(1) + r));
         }
-        // Directional-hemispherical transmittance into the layer of light from outside at |cosine| mu: for a
-        // rough face from its table (Tables) above the first table interval, exactly below it. The table only
-        // serves light entering a denser (or equal) medium: from a denser outside medium T(mu) has an onset at
-        // the critical cosine, as steep as sigma is small, which no polynomial table resolves (found by
-        // fuzz_layer: n 1.88 | 0.50, sigma 7e-5, mu 0.996 gave a transmittance 12% above the entering flux).
-        Real transmittance_from_outside(Real mu) const {
-            if (!rough() || eta_outside() > eta_inside() || mu < layer.tables().grazing)
-                return boundary().hemispherical_transmittance(from_outside(mu));
-            return non_negative(bottom ? layer.tables().bottom_in(mu) : layer.tables().top_in(mu));
-        }
+        // Directional-hemispherical transmittance into the layer of light from outside at |cosine| mu
+        // (detail::EntryTransmittance: tabulated for a rough face, where that serves).
+        Real transmittance_from_outside(Real mu) const { return bottom ? (*layer.bottom_entry_)(mu) : (*layer.top_entry_)(mu); }
         // tau(mu_m): the transmittance out of the layer of light from inside at each ordinate (the renormalized
         // rough operators computed these totals already).
         std::vector<Real> transmittance_at_ordinates() const {
@@ -896,26 +940,9 @@ private:
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled)
-    // Rough boundaries: the transmittance of light arriving from outside, tabulated on first use (64 hemispherical
-    // integrals each, so a solve for fluxes alone does not pay for them); std::call_once keeps it thread-safe.
-    struct Tables {
-        std::once_flag once;
-        detail::MuTable<Real> top_in, bottom_in;
-        Real grazing = 0;  // below the first table interval the transmittance is computed exactly
-    };
-    std::shared_ptr<Tables> tables_ = std::make_shared<Tables>();
-    const Tables& tables() const {
-        std::call_once(tables_->once, [this] {
-            constexpr int intervals = 64;
-            // Only where the table serves (Face::transmittance_from_outside): light entering a denser medium.
-            if (top_.rough() && top_.eta_above() <= top_.eta_below())
-                tables_->top_in.build(intervals, [this](Real mu) { return top_.hemispherical_transmittance(mu); });
-            if (bottom_.rough() && bottom_.eta_below() <= bottom_.eta_above())
-                tables_->bottom_in.build(intervals, [this](Real mu) { return bottom_.hemispherical_transmittance(-mu); });
-            tables_->grazing = Real(1) / Real(intervals * intervals);
-        });
-        return *tables_;
-    }
+    // The transmittance of light arriving from outside (Face::transmittance_from_outside), shared with a
+    // PreparedBoundary when solved from one.
+    std::shared_ptr<const detail::EntryTransmittance<Real>> top_entry_, bottom_entry_;
     std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
 };
 
@@ -945,6 +972,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                                                  const detail::PreparedOperators<Real>& prepared) {
     detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
     LayeredSurface s(top, bottom);
+    if (prepared.top_entry) s.top_entry_ = prepared.top_entry;
+    if (prepared.bottom_entry) s.bottom_entry_ = prepared.bottom_entry;
     s.outputs_ = request.outputs;
     s.q_ = gauss_legendre_half<Real>(options.ordinates);
     s.incidence_ = request.incidence;
@@ -1128,7 +1157,9 @@ LayeredSurface<Real> solve_stack(const PreparedBoundary<Real>& top, const std::v
                                  const detail::non_deduced_t<LayerRequest<Real>>& request) {
     const LayerOptions& options = top.options();
     detail::require_same_options("bottom", bottom.options(), options);
-    detail::PreparedOperators<Real> prepared{top.operators(), bottom.operators(), {}};
+    detail::PreparedOperators<Real> prepared{top.operators(), bottom.operators(), {},
+                                             top.entry_transmittance(Incidence::from_above),
+                                             bottom.entry_transmittance(Incidence::from_below)};
     std::vector<Boundary<Real>> faces;
     for (std::size_t i = 0; i < interior.size(); ++i) {
         detail::require_same_options("interior[" + std::to_string(i) + "]", interior[i].options(), options);
