@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "test_util.hpp"
@@ -217,6 +218,39 @@ TEST_CASE("requests: each shortcut agrees with the full solution") {
         const auto layer = solve_layer(slab, top, bottom, options, r);
         CHECK(layer.modes() == 1);
         CHECK(std::fabs(layer.ambient(wo) - full.ambient(wo)) <= 1e-15 * full.ambient(wo));
+    }
+    SUBCASE("fluxes only: mode 0 alone, without being told, gives the same reflectance and transmittance") {
+        // Fluxes are mode-0 quantities (the azimuthal integral of a Fourier series keeps its k = 0 term). The
+        // operators of a 1-mode solve come from an azimuthal rule built for mode 0 alone, so the values agree
+        // with the full solve's to that rule's error, not bitwise (interface_operators.hpp: <= 1e-12; here ~1e-15).
+        const SmoothDielectric<double> smooth_top(1.0, 1.4), smooth_bottom(1.4, 1.0);
+        const std::pair<Boundary<double>, Boundary<double>> faces[] = {{top, bottom}, {smooth_top, smooth_bottom}};
+        for (const auto& [upper, lower] : faces) {
+            const auto everything = solve_layer(slab, upper, lower, options);
+            LayerRequest<double> r;
+            r.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+            const auto layer = solve_layer(slab, upper, lower, options, r);
+            CHECK(layer.modes() == 1);
+            CHECK(everything.modes() == 16);
+            for (double mu : {1.0, 0.7, 0.3, 0.05}) {
+                INFO("rough " << upper.rough() << ", mu " << mu);
+                const double rs = everything.reflectance(mu).subsurface, t = everything.transmittance(mu);
+                CHECK(rs > 0.01);
+                CHECK(t > 0.01);
+                CHECK(std::fabs(layer.reflectance(mu).subsurface - rs) <= 1e-14 * rs);
+                CHECK(std::fabs(layer.transmittance(mu) - t) <= 1e-14 * t);
+                CHECK(layer.direct_transmittance(mu) == everything.direct_transmittance(mu));
+                CHECK(layer.direct_reflectance(mu) == everything.direct_reflectance(mu));
+            }
+            CHECK(layer.brdf(wi, wo) == 0.0);  // neither the surface nor the subsurface reflection was requested
+            CHECK(layer.btdf(wi, wt) == 0.0);
+            // One flux alone: the other is not computed.
+            r.outputs = LayerOutput::transmittance;
+            const auto transmitted = solve_layer(slab, upper, lower, options, r);
+            CHECK(transmitted.modes() == 1);
+            CHECK(transmitted.reflectance(0.7).subsurface == 0.0);
+            CHECK(transmitted.transmittance(0.7) == layer.transmittance(0.7));
+        }
     }
     SUBCASE("precomputed incidences give the same values as on-the-fly evaluation") {
         LayerRequest<double> r;

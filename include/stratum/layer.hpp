@@ -42,14 +42,19 @@
 
 namespace stratum {
 
-/// The outputs a scene asks for; combine with |. The solver skips the work of the others.
+/// The outputs a scene asks for; combine with |. The solver skips the work of the others. "Reflection" and
+/// "transmission" are the angular distributions (BRDF, BTDF: all Fourier modes); "reflectance" and
+/// "transmittance" the fractions of an incident beam's flux (reflectance(mu), transmittance(mu)), which need
+/// Fourier mode 0 alone: a request with no angular output solves that mode only.
 enum class LayerOutput : unsigned {
     surface_reflection = 1u << 0,     ///< r_12: reflection by the top interface alone (needs no solve)
-    subsurface_reflection = 1u << 1,  ///< r_s: light that entered the layer and came back out of the top
-    transmission = 1u << 2,           ///< t_s: light leaving through the bottom
+    subsurface_reflection = 1u << 1,  ///< r_s: light that entered the layer and came back out of the top (includes reflectance)
+    transmission = 1u << 2,           ///< t_s: light leaving through the bottom (includes transmittance)
     ambient = 1u << 3,                ///< r_a: subsurface reflection of a uniform sky (Fourier mode 0 only)
     operators = 1u << 4,              ///< the whole layer's per-mode operators on the ordinates (for stacking)
-    all = (1u << 5) - 1,
+    reflectance = 1u << 5,            ///< reflectance(mu).subsurface and direct_reflectance(mu) alone (mode 0)
+    transmittance = 1u << 6,          ///< transmittance(mu) and direct_transmittance(mu) alone (mode 0)
+    all = (1u << 7) - 1,
 };
 constexpr LayerOutput operator|(LayerOutput a, LayerOutput b) noexcept {
     return static_cast<LayerOutput>(static_cast<unsigned>(a) | static_cast<unsigned>(b));
@@ -57,6 +62,17 @@ constexpr LayerOutput operator|(LayerOutput a, LayerOutput b) noexcept {
 constexpr bool includes(LayerOutput set, LayerOutput o) noexcept {
     return (static_cast<unsigned>(set) & static_cast<unsigned>(o)) != 0;
 }
+
+namespace detail {
+// Whether the internal field of reflected (Q_b) or transmitted (Q_e) light is needed: for the angular output or
+// for its flux alone.
+constexpr bool needs_reflected(LayerOutput set) noexcept {
+    return includes(set, LayerOutput::subsurface_reflection | LayerOutput::reflectance);
+}
+constexpr bool needs_transmitted(LayerOutput set) noexcept {
+    return includes(set, LayerOutput::transmission | LayerOutput::transmittance);
+}
+}  // namespace detail
 
 /// Discretization knobs.
 struct LayerOptions {
@@ -342,15 +358,17 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
 }
 
 /// The Fourier modes to solve: LayerOptions::modes (0: 2M, as many as 2M Legendre moments support) capped by
-/// LayerRequest::max_modes; mode 0 alone for the ambient term alone; none for the surface reflection alone.
+/// LayerRequest::max_modes; mode 0 alone when no angular output is requested (reflectance, transmittance and the
+/// ambient term need no other); none for the surface reflection alone.
 template <class Real>
 int mode_count(const LayerOptions& options, const LayerRequest<Real>& request) noexcept {
     int modes = options.modes > 0 ? options.modes : 2 * options.ordinates;
     if (request.max_modes > 0) modes = std::min(modes, request.max_modes);
-    const bool solved = includes(request.outputs, LayerOutput::subsurface_reflection) ||
-                        includes(request.outputs, LayerOutput::transmission) ||
-                        includes(request.outputs, LayerOutput::operators);
-    if (!solved) modes = includes(request.outputs, LayerOutput::ambient) ? 1 : 0;
+    const bool angular = includes(request.outputs, LayerOutput::subsurface_reflection | LayerOutput::transmission |
+                                                       LayerOutput::operators);
+    const bool fluxes = includes(request.outputs, LayerOutput::reflectance | LayerOutput::transmittance |
+                                                      LayerOutput::ambient);
+    if (!angular) modes = fluxes ? 1 : 0;
     return modes;
 }
 
@@ -423,8 +441,7 @@ PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<S
                                      : std::make_shared<const InterfaceOperators<Real>>(b.operators(q, modes, interior_options)));
         stack.any_rough = stack.any_rough || b.rough();
     }
-    const bool shortcut = request.tolerance > 0 && slabs.size() == 1 &&
-                          !includes(request.outputs, LayerOutput::transmission) &&
+    const bool shortcut = request.tolerance > 0 && slabs.size() == 1 && !needs_transmitted(request.outputs) &&
                           !includes(request.outputs, LayerOutput::operators);
     for (const Slab<Real>& slab : slabs) {
         stack.slabs.push_back(prepare_slab(slab, q, modes, options.delta_m, slab.optical_thickness()));
@@ -531,7 +548,8 @@ public:
     Real btdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return btdf(wi, wo, ws); }
 
     /// Directional-hemispherical reflectance for incidence cosine mu_i in (0, 1]: {surface, subsurface}
-    /// (0 outside (0, 1]). The subsurface part includes the unscattered beam (see direct_reflectance).
+    /// (0 outside (0, 1]). The subsurface part includes the unscattered beam (see direct_reflectance); it is 0
+    /// unless LayerOutput::subsurface_reflection or LayerOutput::reflectance was requested.
     struct Reflectance {
         Real surface, subsurface;
         Real total() const noexcept { return surface + subsurface; }
@@ -540,16 +558,16 @@ public:
         if (!(mu_i > 0 && mu_i <= 1)) return {Real(0), Real(0)};
         Workspace ws;
         Reflectance a{top_.hemispherical_reflectance(mu_i), Real(0)};
-        if (includes(outputs_, LayerOutput::subsurface_reflection))
+        if (detail::needs_reflected(outputs_))
             a.subsurface = non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, false, ws), exit_top_)) +
                            direct(mu_i, false);
         return a;
     }
 
     /// Fraction of the incident flux (cosine mu_i in (0, 1] from above) leaving through the bottom, including
-    /// the unscattered beam; 0 outside (0, 1] or if transmission was not requested.
+    /// the unscattered beam; 0 outside (0, 1] or unless LayerOutput::transmission or ::transmittance was requested.
     Real transmittance(Real mu_i) const {
-        if (!includes(outputs_, LayerOutput::transmission) || !(mu_i > 0 && mu_i <= 1)) return Real(0);
+        if (!detail::needs_transmitted(outputs_) || !(mu_i > 0 && mu_i <= 1)) return Real(0);
         Workspace ws;
         return non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, true, ws), exit_bottom_)) + direct(mu_i, true);
     }
@@ -561,13 +579,13 @@ public:
     /// attenuation e^{-tau/mu'} and the geometric series of bounces between the faces); 0 otherwise.
     /// reflectance() and transmittance() include them; the scattered light is scaled so that it receives exactly the
     /// energy the true beam loses, which keeps a non-absorbing layer exactly energy-conserving.
-    /// Like transmittance() and reflectance(), they are 0 when their output (LayerOutput::transmission,
-    /// subsurface_reflection) was not requested.
+    /// Like transmittance() and reflectance(), they are 0 when their outputs (LayerOutput::transmission or
+    /// ::transmittance; ::subsurface_reflection or ::reflectance) were not requested.
     Real direct_transmittance(Real mu_i) const {
-        return includes(outputs_, LayerOutput::transmission) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, true) : Real(0);
+        return detail::needs_transmitted(outputs_) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, true) : Real(0);
     }
     Real direct_reflectance(Real mu_i) const {
-        return includes(outputs_, LayerOutput::subsurface_reflection) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, false)
+        return detail::needs_reflected(outputs_) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, false)
                                                                                               : Real(0);
     }
 
@@ -1034,7 +1052,7 @@ void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Re
     Matrix<Real> a = Matrix<Real>::identity(m);
     detail::lu_solve(detail::lu_factor(detail::one_minus_product(r21, S)), a);
     qb_.push_back(detail::multiply(S, a));
-    if (!includes(outputs_, LayerOutput::transmission)) return;
+    if (!detail::needs_transmitted(outputs_)) return;
     const Matrix<Real> r_mid_up = detail::as_matrix(m, below.middle.reflection_up);
     const Matrix<Real> r23 = detail::as_matrix(m, below.bottom.reflection_down);
     Matrix<Real> x = detail::multiply(detail::as_matrix(m, below.middle.transmission_down), a);
@@ -1058,9 +1076,9 @@ Real LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real
         return big * (k == 0 ? Real(1) : Real(2));
     };
     Real size_k = 0;
-    if (includes(outputs_, LayerOutput::subsurface_reflection) || includes(outputs_, LayerOutput::ambient))
+    if (detail::needs_reflected(outputs_) || includes(outputs_, LayerOutput::ambient))
         size_k = size(detail::mode_matrix(top_ops_->T21(), k), qb_.back());
-    if (includes(outputs_, LayerOutput::transmission))
+    if (detail::needs_transmitted(outputs_))
         size_k = std::fmax(size_k, size(detail::as_matrix(m, bottom.transmission_down), qe_.back()));
     return size_k;
 }
@@ -1089,7 +1107,7 @@ template <class Real>
 void LayeredSurface<Real>::separate_direct_beam(Real tau) {
     direct_separated_ = true;
     direct_tau_ = tau;
-    const bool want_t = includes(outputs_, LayerOutput::transmission);
+    const bool want_t = detail::needs_transmitted(outputs_);
     for (std::size_t i = 0; i < q_.size(); ++i) {
         const DirectBeam beam = direct_beam(q_.nodes[i]);
         if (beam.trapped()) continue;
@@ -1110,11 +1128,11 @@ void LayeredSurface<Real>::precompute_incidences() {
     cached_b_.assign(incidence_.size(), {});
     cached_e_.assign(incidence_.size(), {});
     for (std::size_t j = 0; j < incidence_.size(); ++j) {
-        if (includes(outputs_, LayerOutput::subsurface_reflection)) {
+        if (detail::needs_reflected(outputs_)) {
             const Real* f = field(incidence_[j], false, ws);
             cached_b_[j].assign(f, f + size);
         }
-        if (includes(outputs_, LayerOutput::transmission)) {
+        if (detail::needs_transmitted(outputs_)) {
             const Real* f = field(incidence_[j], true, ws);
             cached_e_[j].assign(f, f + size);
         }
