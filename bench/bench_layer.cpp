@@ -129,3 +129,13 @@ void BM_layer_eval_subsurface_brdf_cached_incidence(benchmark::State& state) {
 BENCHMARK(BM_layer_eval_subsurface_brdf_cached_incidence)->Arg(8)->Arg(16)->Arg(24)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
+
+// reflectance(mu) (surface and subsurface) at an incidence computed on the fly, and at a requested one.
+void BM_layer_eval_reflectance(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    if (state.range(1) == 1) r.incidence = {0.8};
+    const auto layer = skin(static_cast<int>(state.range(0)), r);
+    for (auto _ : state) benchmark::DoNotOptimize(layer.reflectance(0.8).total());
+    state.SetLabel(state.range(1) == 1 ? "precomputed incidence" : "on the fly");
+}
+BENCHMARK(BM_layer_eval_reflectance)->Args({16, 0})->Args({16, 1})->Unit(benchmark::kMicrosecond);

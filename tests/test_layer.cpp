@@ -225,7 +225,9 @@ TEST_CASE("requests: each shortcut agrees with the full solution") {
         // with the full solve's to that rule's error, not bitwise (interface_operators.hpp: <= 1e-12; here ~1e-15).
         const SmoothDielectric<double> smooth_top(1.0, 1.4), smooth_bottom(1.4, 1.0);
         const std::pair<Boundary<double>, Boundary<double>> faces[] = {{top, bottom}, {smooth_top, smooth_bottom}};
-        for (const auto& [upper, lower] : faces) {
+        for (const auto& pair : faces) {
+            const Boundary<double>& upper = pair.first;  // (not a structured binding: INFO captures it, C++17)
+            const Boundary<double>& lower = pair.second;
             const auto everything = solve_layer(slab, upper, lower, options);
             LayerRequest<double> r;
             r.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
@@ -258,6 +260,10 @@ TEST_CASE("requests: each shortcut agrees with the full solution") {
         const auto layer = solve_layer(slab, top, bottom, options, r);
         CHECK(std::fabs(layer.brdf(wi, wo) - full.brdf(wi, wo)) <= 1e-15 * full.brdf(wi, wo));
         CHECK(std::fabs(layer.btdf(wi, wt) - full.btdf(wi, wt)) <= 1e-15 * full.btdf(wi, wt));
+        CHECK(layer.reflectance(0.7).surface == full.reflectance(0.7).surface);  // cached, the same integral
+        CHECK(std::fabs(layer.reflectance(0.7).subsurface - full.reflectance(0.7).subsurface) <=
+              1e-15 * full.reflectance(0.7).subsurface);
+        CHECK(std::fabs(layer.transmittance(0.7) - full.transmittance(0.7)) <= 1e-15 * full.transmittance(0.7));
     }
     SUBCASE("a tolerance stops the mode loop early and stays within the tolerance") {
         for (double tol : {1e-2, 1e-3, 1e-5}) {

@@ -104,7 +104,9 @@ TEST_CASE("a solve from prepared boundaries is bit-identical to the solve from t
     const Slab<double> slabs[] = {{0.99, 0.8, 2.0}, {1.0, 0.0, 0.5}, {0.6, -0.3, 30.0}};
     for (const Renormalization renormalization : {Renormalization::hemispherical_totals, Renormalization::none}) {
         options.renormalization = renormalization;
-        for (const auto& [top, bottom] : faces) {
+        for (const auto& pair : faces) {
+            const Boundary<double>& top = pair.first;  // (not a structured binding: INFO captures it, C++17)
+            const Boundary<double>& bottom = pair.second;
             const PreparedBoundary<double> prepared_top(top, options), prepared_bottom(bottom, options);
             for (const Slab<double>& slab : slabs)
                 for (const LayerRequest<double>& request : requests()) {

@@ -92,7 +92,8 @@ template <class Real = double>
 struct LayerRequest {
     LayerOutput outputs = LayerOutput::all;
     /// Incidence cosines mu_0 in (0, 1] at which brdf/btdf/reflectance/transmittance will be evaluated; their internal fields
-    /// are precomputed, so evaluation there skips the top interface's coefficients and the per-mode solve.
+    /// (and the top face's hemispherical reflectance) are precomputed, so evaluation there skips the top interface's
+    /// coefficients, its reflectance integral and the per-mode solve.
     /// Other incidences still work (computed on the fly).
     std::vector<Real> incidence;
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
@@ -557,7 +558,7 @@ public:
     Reflectance reflectance(Real mu_i) const {
         if (!(mu_i > 0 && mu_i <= 1)) return {Real(0), Real(0)};
         Workspace ws;
-        Reflectance a{top_.hemispherical_reflectance(mu_i), Real(0)};
+        Reflectance a{surface_reflectance(mu_i), Real(0)};
         if (detail::needs_reflected(outputs_))
             a.subsurface = non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, false, ws), exit_top_)) +
                            direct(mu_i, false);
@@ -628,6 +629,13 @@ private:
     void separate_direct_beam(Real tau);
     void precompute_incidences();
 
+
+    // The top face's hemispherical reflectance (an integral for a rough face), precomputed at the requested incidences.
+    Real surface_reflectance(Real mu_i) const {
+        for (std::size_t j = 0; j < incidence_.size(); ++j)
+            if (incidence_[j] == mu_i) return cached_surface_[j];
+        return top_.hemispherical_reflectance(mu_i);
+    }
 
     // Which way light crosses a face: into the layer from outside, or out of it.
     enum class Crossing { entering, leaving };
@@ -955,6 +963,7 @@ private:
     std::vector<ComponentOperators<Real>> whole_;         // per mode, if requested
     std::vector<Real> incidence_;
     std::vector<std::vector<Real>> cached_b_, cached_e_;  // per requested incidence: K blocks of M
+    std::vector<Real> cached_surface_;                    // per requested incidence: the top's reflectance
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled)
@@ -982,7 +991,7 @@ LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& to
 //  5. the ambient field under a uniform sky, from Q_b of mode 0 (solve_ambient);
 //  6. between two specular faces, the unscattered beam taken out of Q_b and Q_e, to be added back exactly at the
 //     true angle (separate_direct_beam);
-//  7. the internal fields of the requested incidences (precompute_incidences).
+//  7. the internal fields of the requested incidences (precompute_incidences; their surface reflectance in step 1).
 template <class Real>
 LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                                  const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
@@ -995,6 +1004,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.outputs_ = request.outputs;
     s.q_ = gauss_legendre_half<Real>(options.ordinates);
     s.incidence_ = request.incidence;
+    for (const Real mu : s.incidence_) s.cached_surface_.push_back(top.hemispherical_reflectance(mu));
     const int modes = detail::mode_count(options, request);
     if (modes == 0) return s;
 
