@@ -21,6 +21,7 @@ using stratum::Vec3;
 
 namespace {
 
+using stratum_test::fresnel_closed_form;
 using stratum_test::pi;
 using stratum_test::random_direction;
 using stratum_test::uniform;
@@ -374,15 +375,6 @@ TEST_CASE("delta samples at subnormal cosines are discarded, never inf (found by
     const auto n = RoughDielectric<double>(0.3, 1.2, 1.2).sample(Vec3<double>{1.0, 0.0, std::numeric_limits<double>::min()}, 0.5, 0.5, 0.5);
     CHECK(n.valid());
     CHECK(std::isfinite(n.value));
-}
-
-// Unpolarized Fresnel reflectance of a dielectric for cos(incidence) c and relative index n (Born & Wolf),
-// written out here so that the test does not share code with fresnel.hpp; g - c = (n - 1)(n + 1) / (g + c)
-// keeps the relative accuracy for n near 1.
-double fresnel_closed_form(double c, double n) {
-    const double g = std::sqrt((n - 1) * (n + 1) + c * c);
-    const double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
-    return 0.5 * a * a * (1 + b * b);
 }
 
 TEST_CASE("a BRDF that exceeds the range at a grazing direction saturates; below that it is exact (found by fuzz_pointwise)") {

@@ -374,18 +374,20 @@ TEST_CASE("the BRDF and BTDF integrate to the albedo and transmittance") {
             CHECK(std::fabs(t - layer.transmittance(mu)) < 5e-4);
         }
     }
-    SUBCASE("smooth boundaries: scattered light plus the unscattered delta") {
+    SUBCASE("smooth boundaries: scattered light plus the unscattered delta and delta-M's forward peak") {
         const auto layer = solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0),
                                        with_ordinates(16));
         for (double mu : {1.0, 0.7, 0.3}) {
             const Vec3<double> wi = direction(mu, 0.0);
             const double r = hemisphere_integral([&](Vec3<double> o) { return layer.subsurface_brdf(wi, o); }, true);
             const double t = hemisphere_integral([&](Vec3<double> o) { return layer.btdf(wi, o); }, false);
-            MESSAGE("smooth, mu0 = " << mu << ": int r_s + direct = " << r + layer.direct_reflectance(mu) << " vs "
-                                     << layer.reflectance(mu).subsurface << ", int t_s + direct = "
-                                     << t + layer.direct_transmittance(mu) << " vs " << layer.transmittance(mu));
-            CHECK(std::fabs(r + layer.direct_reflectance(mu) - layer.reflectance(mu).subsurface) < 2e-2);
-            CHECK(std::fabs(t + layer.direct_transmittance(mu) - layer.transmittance(mu)) < 2e-2);
+            const double r_delta = layer.direct_reflectance(mu) + layer.forward_peak_reflectance(mu);
+            const double t_delta = layer.direct_transmittance(mu) + layer.forward_peak_transmittance(mu);
+            MESSAGE("smooth, mu0 = " << mu << ": int r_s + deltas = " << r + r_delta << " vs "
+                                     << layer.reflectance(mu).subsurface << ", int t_s + deltas = " << t + t_delta
+                                     << " vs " << layer.transmittance(mu));
+            CHECK(std::fabs(r + r_delta - layer.reflectance(mu).subsurface) < 2e-2);
+            CHECK(std::fabs(t + t_delta - layer.transmittance(mu)) < 2e-2);
         }
     }
 }

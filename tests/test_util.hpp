@@ -26,6 +26,17 @@ inline stratum::Vec3<double> random_direction(std::mt19937_64& rng) {
     return {s * std::cos(phi), s * std::sin(phi), z};
 }
 
+/// Unpolarized Fresnel reflectance of a dielectric for cos(incidence) c and relative index n (Born & Wolf),
+/// written out here so that tests do not share code with fresnel.hpp; g - c = (n - 1)(n + 1) / (g + c) keeps
+/// the relative accuracy for n near 1. Total internal reflection (n^2 - 1 + c^2 < 0) gives 1.
+inline double fresnel_closed_form(double c, double n) {
+    const double g2 = (n - 1) * (n + 1) + c * c;
+    if (g2 <= 0) return 1.0;
+    const double g = std::sqrt(g2);
+    const double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
+    return 0.5 * a * a * (1 + b * b);
+}
+
 /// Distance in units in the last place between two finite values of the same type: the number of
 /// representable values strictly between them plus one (0 when equal; +0 and -0 are equal).
 /// Works for float and double by mapping the bit pattern onto a monotone integer line.

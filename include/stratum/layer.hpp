@@ -561,7 +561,7 @@ public:
         Reflectance a{surface_reflectance(mu_i), Real(0)};
         if (detail::needs_reflected(outputs_))
             a.subsurface = non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, false, ws), exit_top_)) +
-                           direct(mu_i, false);
+                           direct(mu_i, false, direct_tau_);
         return a;
     }
 
@@ -570,24 +570,36 @@ public:
     Real transmittance(Real mu_i) const {
         if (!detail::needs_transmitted(outputs_) || !(mu_i > 0 && mu_i <= 1)) return Real(0);
         Workspace ws;
-        return non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, true, ws), exit_bottom_)) + direct(mu_i, true);
+        return non_negative(scattering_scale(mu_i, ws) * flux_out(field(mu_i, true, ws), exit_bottom_)) +
+               direct(mu_i, true, direct_tau_);
     }
 
     /// Between two specular (smooth or index-matched) boundaries the unscattered beam leaves as a delta:
     /// through the bottom in the Snell direction of wi (direct_transmittance) and, after a specular
     /// reflection at the bottom, through the top in the mirror direction (direct_reflectance). These are the
     /// fractions of the incident flux they carry, computed exactly at the true angle (Fresnel factors, the
-    /// attenuation e^{-tau/mu'} and the geometric series of bounces between the faces); 0 otherwise.
-    /// reflectance() and transmittance() include them; the scattered light is scaled so that it receives exactly the
-    /// energy the true beam loses, which keeps a non-absorbing layer exactly energy-conserving.
+    /// attenuation e^{-tau/mu'} with the slab's true optical thickness, and the geometric series of bounces
+    /// between the faces); 0 otherwise.
+    /// Delta-M (LayerOptions::delta_m) treats scattering into the truncated forward peak, a fraction f of all
+    /// scattering, as no scattering: that light travels on with the beam, which the solver attenuates by the
+    /// scaled thickness (1 - f albedo) tau instead. The difference, light scattered into the forward peak that
+    /// leaves within a narrow cone around the beam's directions, is forward_peak_transmittance and
+    /// forward_peak_reflectance (0 without delta-M or for g <= 0); a renderer may add it to the delta.
+    /// reflectance() and transmittance() include both; the scattered light is scaled so that it receives exactly
+    /// the energy the beam loses, which keeps a non-absorbing layer exactly energy-conserving.
     /// Like transmittance() and reflectance(), they are 0 when their outputs (LayerOutput::transmission or
     /// ::transmittance; ::subsurface_reflection or ::reflectance) were not requested.
     Real direct_transmittance(Real mu_i) const {
-        return detail::needs_transmitted(outputs_) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, true) : Real(0);
+        return detail::needs_transmitted(outputs_) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, true, beam_tau_) : Real(0);
     }
     Real direct_reflectance(Real mu_i) const {
-        return detail::needs_reflected(outputs_) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, false)
-                                                                                              : Real(0);
+        return detail::needs_reflected(outputs_) && mu_i > 0 && mu_i <= 1 ? direct(mu_i, false, beam_tau_) : Real(0);
+    }
+    Real forward_peak_transmittance(Real mu_i) const {
+        return detail::needs_transmitted(outputs_) && mu_i > 0 && mu_i <= 1 ? forward_peak(mu_i, true) : Real(0);
+    }
+    Real forward_peak_reflectance(Real mu_i) const {
+        return detail::needs_reflected(outputs_) && mu_i > 0 && mu_i <= 1 ? forward_peak(mu_i, false) : Real(0);
     }
 
     /// r_a(wo): subsurface radiance leaving towards wo (wo.z > 0) under a uniform sky of unit radiance
@@ -626,7 +638,7 @@ private:
     void add_field_operators(int k, const detail::StackMode<Real>& below);
     Real coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
     void solve_ambient();
-    void separate_direct_beam(Real tau);
+    void separate_direct_beam(Real scaled_tau, Real true_tau);
     void precompute_incidences();
 
 
@@ -902,27 +914,34 @@ private:
             return (Real(1) - d) * (Real(1) + r23 * d) / loss;
         }
     };
-    DirectBeam direct_beam(Real mu) const noexcept {
-        const Real d = std::isinf(direct_tau_) ? Real(0) : std::exp(-direct_tau_ / mu);
+    DirectBeam direct_beam(Real mu, Real tau) const noexcept {
+        const Real d = std::isinf(tau) ? Real(0) : std::exp(-tau / mu);
         const Real r21 = top_.smooth_interface().reflectance(-mu), r23 = bottom_.smooth_interface().reflectance(mu);
         return {d, r21, r23, Real(1) - r21 * r23 * d * d};
     }
 
-    // The unscattered beam between two specular boundaries (see direct_transmittance), exactly at mu_i: it enters
-    // with T_12(mu_i), bounces between the faces, and leaves through the bottom with T_23 or, after a reflection
-    // there, through the top with T_21.
-    Real direct(Real mu_i, bool transmitted) const {
+    // The beam between two specular boundaries (see direct_transmittance), exactly at mu_i, attenuated by the
+    // optical thickness tau (beam_tau_: the unscattered beam; direct_tau_: delta-M's, with the forward peak): it
+    // enters with T_12(mu_i), bounces between the faces, and leaves through the bottom with T_23 or, after a
+    // reflection there, through the top with T_21.
+    Real direct(Real mu_i, bool transmitted, Real tau) const {
         if (!direct_separated_) return Real(0);
         const Real mu_t = top_face().internal_cosine(mu_i);
         if (!(mu_t > 0)) return Real(0);
         // Trapped: rounding puts mu_t exactly on the critical cosine for grazing incidence (mu_i^2 below the rounding
         // of eta^2 - 1) with tau = 0; the true value there is O(T_12(mu_i)) = O(mu_i) < 1e-7.
-        const DirectBeam beam = direct_beam(mu_t);
+        const DirectBeam beam = direct_beam(mu_t, tau);
         if (beam.trapped()) return Real(0);
         const SmoothDielectric<Real>& t = top_.smooth_interface();
         const Real into = t.transmittance(mu_i) * beam.d * beam.bounces();
         return transmitted ? into * bottom_.smooth_interface().transmittance(mu_t)
                            : into * beam.r23 * beam.d * t.transmittance(-mu_t);
+    }
+
+    // Delta-M's beam minus the unscattered one: light scattered into the truncated forward peak (>= 0: the beam's
+    // flux grows with its transmission d, and the scaled thickness is the smaller).
+    Real forward_peak(Real mu_i, bool transmitted) const {
+        return non_negative(direct(mu_i, transmitted, direct_tau_) - direct(mu_i, transmitted, beam_tau_));
     }
 
     // Between specular faces the scattered light is driven by the beam spread over the ordinates, whose
@@ -938,13 +957,13 @@ private:
         Real spread = 0, total = 0;
         for (std::size_t n = 0; n < q_.size(); ++n) {
             const Real share = q_.weights[n] * q_.nodes[n] * ws.c[n];  // mode-0 flux share (up to 1 / 2 pi)
-            spread += share * direct_beam(q_.nodes[n]).extracted();
+            spread += share * direct_beam(q_.nodes[n], direct_tau_).extracted();
             total += share;
         }
         // The shares are Lagrange weights and may be negative; where the spread extracts less than half the
         // true beam's energy the scale is capped at 2, so that the spread's overshoot is not amplified.
         if (!(spread > 0)) return Real(1);
-        return std::fmin(total * direct_beam(mu_t).extracted() / spread, Real(2));
+        return std::fmin(total * direct_beam(mu_t, direct_tau_).extracted() / spread, Real(2));
     }
 
     // Flux leaving through a boundary from the mode-0 internal field: 2 pi sum_n w_n mu_n f_n tau(mu_n).
@@ -966,7 +985,8 @@ private:
     std::vector<Real> cached_surface_;                    // per requested incidence: the top's reflectance
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
-    Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled)
+    Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled), as solved
+    Real beam_tau_ = 0;                                   // the slab's true optical thickness
     // The transmittance of light arriving from outside (Face::transmittance_from_outside), shared with a
     // PreparedBoundary when solved from one.
     std::shared_ptr<const detail::EntryTransmittance<Real>> top_entry_, bottom_entry_;
@@ -1020,7 +1040,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     if (includes(request.outputs, LayerOutput::ambient)) s.solve_ambient();  // 5.
     if (!top.rough() && !bottom.rough() && slabs.size() == 1)  // 6.
-        s.separate_direct_beam(stack.slabs[0].slab.optical_thickness());
+        s.separate_direct_beam(stack.slabs[0].slab.optical_thickness(), slabs[0].optical_thickness());
     s.precompute_incidences();  // 7.
     return s;
 }
@@ -1114,12 +1134,14 @@ void LayeredSurface<Real>::solve_ambient() {
 // so that brdf/btdf hold scattered light only, and add it back exactly at the true angle (direct()). A trapped
 // beam is reached by no light from outside: there is nothing to take out (and its series would be 1 / 0).
 template <class Real>
-void LayeredSurface<Real>::separate_direct_beam(Real tau) {
+void LayeredSurface<Real>::separate_direct_beam(Real scaled_tau, Real true_tau) {
     direct_separated_ = true;
-    direct_tau_ = tau;
+    direct_tau_ = scaled_tau;
+    // The semi-infinite shortcut (LayerRequest::tolerance) made the solved slab infinitely thick: so is the beam's.
+    beam_tau_ = std::isinf(scaled_tau) ? scaled_tau : true_tau;
     const bool want_t = detail::needs_transmitted(outputs_);
     for (std::size_t i = 0; i < q_.size(); ++i) {
-        const DirectBeam beam = direct_beam(q_.nodes[i]);
+        const DirectBeam beam = direct_beam(q_.nodes[i], direct_tau_);
         if (beam.trapped()) continue;
         const Real bounces = beam.bounces();
         for (int k = 0; k < modes_; ++k) {

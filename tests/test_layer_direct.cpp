@@ -1,0 +1,138 @@
+// The unscattered beam between specular faces (docs/physics.md section 6): direct_transmittance and
+// direct_reflectance are the truly unscattered beam, attenuated by the slab's own optical thickness whatever
+// delta-M does, checked against closed forms (Beer's law; the geometric series of bounces between Fresnel faces,
+// with the Fresnel factors written out in test_util.hpp); delta-M's forward peak, the light scattered into the
+// truncated peak that the method carries with the beam, is reported apart, is 0 without delta-M, and the fluxes
+// keep the same energy bookkeeping.
+#include <doctest/doctest.h>
+
+#include <stratum/layer.hpp>
+
+#include <cmath>
+#include <limits>
+
+#include "test_util.hpp"
+
+using stratum::Boundary;
+using stratum::LayerOptions;
+using stratum::LayerOutput;
+using stratum::LayerRequest;
+using stratum::RoughDielectric;
+using stratum::Slab;
+using stratum::SmoothDielectric;
+using stratum::solve_layer;
+using stratum_test::close_rel;
+using stratum_test::fresnel_closed_form;
+
+namespace {
+
+LayerOptions ordinates(int m, bool delta_m = true) {
+    LayerOptions o;
+    o.ordinates = m;
+    o.delta_m = delta_m;
+    return o;
+}
+
+}  // namespace
+
+TEST_CASE("the unscattered beam is attenuated by the true optical thickness, not delta-M's") {
+    const Boundary<double> matched = Boundary<double>::index_matched(1.0);
+    // Slab(1, 0.75, 8), M = 8: delta-M with 2M = 16 moments truncates f = g^16 of the HG phase function, so the
+    // solved slab has tau' = (1 - f) tau = 7.9198 and e^{-tau'} = 3.6347e-4, while the unscattered beam is e^-8.
+    const auto layer = solve_layer(Slab<double>(1.0, 0.75, 8.0), matched, matched, ordinates(8));
+    const double f = std::pow(0.75, 16);
+    for (const double mu : {1.0, 0.6, 0.2}) {
+        INFO("mu " << mu);
+        const double direct = std::exp(-8.0 / mu), with_peak = std::exp(-(1 - f) * 8.0 / mu);
+        CHECK(close_rel(layer.direct_transmittance(mu), direct, 4e-16));
+        CHECK(close_rel(layer.forward_peak_transmittance(mu), with_peak - direct, 1e-12));
+        CHECK(layer.direct_reflectance(mu) == 0.0);  // index matched: nothing turns the beam back
+        CHECK(layer.transmittance(mu) >= layer.direct_transmittance(mu) + layer.forward_peak_transmittance(mu));
+    }
+    // g = 0.9, tau = 4, mu0 = 0.3, M = 8: delta-M's beam is 11.8x the unscattered one.
+    const auto peaked = solve_layer(Slab<double>(1.0, 0.9, 4.0), matched, matched, ordinates(8));
+    CHECK(close_rel(peaked.direct_transmittance(0.3), std::exp(-4.0 / 0.3), 4e-16));
+    const double ratio = (peaked.direct_transmittance(0.3) + peaked.forward_peak_transmittance(0.3)) /
+                         peaked.direct_transmittance(0.3);
+    CHECK(ratio == doctest::Approx(std::exp(std::pow(0.9, 16) * 4.0 / 0.3)).epsilon(1e-12));
+    CHECK(ratio > 10);
+}
+
+TEST_CASE("the unscattered beam does not depend on the discretization") {
+    const SmoothDielectric<double> top(1.0, 1.5), bottom(1.5, 1.0);
+    const Slab<double> slab(0.9, 0.8, 2.0);
+    const auto reference = solve_layer(slab, top, bottom, ordinates(4));
+    for (const int m : {2, 8, 16}) {
+        const auto layer = solve_layer(slab, top, bottom, ordinates(m));
+        for (const double mu : {1.0, 0.5, 0.1}) {
+            CHECK(layer.direct_transmittance(mu) == reference.direct_transmittance(mu));
+            CHECK(layer.direct_reflectance(mu) == reference.direct_reflectance(mu));
+        }
+    }
+}
+
+TEST_CASE("between Fresnel faces the unscattered beam is the geometric series of its bounces") {
+    // Air | n = 1.5 | n = 1.33 (glass over water), tau = 0.5. Inside at mu_t (Snell), with d = e^{-tau / mu_t},
+    // r21 = F(mu_t, 1 / 1.5) and r23 = F(mu_t, 1.33 / 1.5):
+    //   T = (1 - F_12(mu)) d (1 - r23) / (1 - r21 r23 d^2),   R = (1 - F_12(mu)) d^2 r23 (1 - r21) / (1 - r21 r23 d^2).
+    const double n2 = 1.5, n3 = 1.33, tau = 0.5;
+    const auto layer = solve_layer(Slab<double>(0.8, 0.6, tau), SmoothDielectric<double>(1.0, n2),
+                                   SmoothDielectric<double>(n2, n3), ordinates(8));
+    for (const double mu : {1.0, 0.8, 0.3, 0.05, 1e-6}) {
+        INFO("mu " << mu);
+        const double mu_t = std::sqrt(1 - (1 - mu * mu) / (n2 * n2));
+        const double d = std::exp(-tau / mu_t), f12 = fresnel_closed_form(mu, n2);
+        const double r21 = fresnel_closed_form(mu_t, 1 / n2), r23 = fresnel_closed_form(mu_t, n3 / n2);
+        const double series = (1 - f12) * d / (1 - r21 * r23 * d * d);
+        // At grazing incidence 1 - F_12 = O(mu) cancels in the reference: ~1e-16 / (1 - F_12) relative. There
+        // mu_t is also within mu^2 / (2 n^2 mu_c) = 3e-13 of the top's critical cosine mu_c, where 1 - r21 grows
+        // like the square root of the distance: the rounding of mu_t alone changes 1 - r21 by ~1e-4 relative.
+        const double tolerance = 1e-13 + 1e-16 / (1 - f12);
+        CHECK(close_rel(layer.direct_transmittance(mu), series * (1 - r23), tolerance));
+        CHECK(close_rel(layer.direct_reflectance(mu), series * d * r23 * (1 - r21), mu > 1e-3 ? tolerance : 1e-3));
+    }
+    // A denser substrate (n3 = 1.7): no total internal reflection at the bottom for the beam; and a lighter one
+    // below the critical cosine of the top is never reached from outside (mu_t > critical cosine always).
+    const auto dense = solve_layer(Slab<double>(0.8, 0.6, tau), SmoothDielectric<double>(1.0, n2),
+                                   SmoothDielectric<double>(n2, 1.7), ordinates(8));
+    CHECK(dense.direct_transmittance(0.5) > 0);
+}
+
+TEST_CASE("delta-M's forward peak is 0 without delta-M, for g <= 0, for rough faces and for an opaque shortcut") {
+    const SmoothDielectric<double> top(1.0, 1.4), bottom(1.4, 1.0);
+    const auto plain = solve_layer(Slab<double>(0.9, 0.8, 1.0), top, bottom, ordinates(8, false));
+    const auto back = solve_layer(Slab<double>(0.9, -0.3, 1.0), top, bottom, ordinates(8));
+    const auto isotropic = solve_layer(Slab<double>(0.9, 0.0, 1.0), top, bottom, ordinates(8));
+    for (const double mu : {1.0, 0.4}) {
+        CHECK(plain.forward_peak_transmittance(mu) == 0.0);
+        CHECK(plain.forward_peak_reflectance(mu) == 0.0);
+        CHECK(back.forward_peak_transmittance(mu) == 0.0);
+        CHECK(isotropic.forward_peak_reflectance(mu) == 0.0);
+        CHECK(plain.direct_transmittance(mu) > 0);
+    }
+    const auto rough = solve_layer(Slab<double>(0.9, 0.8, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
+                                   SmoothDielectric<double>(1.4, 1.0), ordinates(8));
+    CHECK(rough.direct_transmittance(0.5) == 0.0);
+    CHECK(rough.forward_peak_transmittance(0.5) == 0.0);
+    // A slab solved as semi-infinite (tolerance, no transmission requested) reflects no beam from its bottom.
+    LayerRequest<double> request;
+    request.outputs = LayerOutput::subsurface_reflection;
+    request.tolerance = 1e-6;
+    const auto thick = solve_layer(Slab<double>(0.9, 0.8, 300.0), top, bottom, ordinates(8), request);
+    CHECK(thick.direct_reflectance(0.5) == 0.0);
+    CHECK(thick.forward_peak_reflectance(0.5) == 0.0);
+}
+
+TEST_CASE("the fluxes keep delta-M's energy: the beam and its forward peak together, exactly conserved at albedo 1") {
+    // Between index-matched faces with albedo 1 nothing is absorbed: R + T = 1 to rounding.
+    const Boundary<double> matched = Boundary<double>::index_matched(1.0);
+    for (const double g : {0.0, 0.5, 0.9})
+        for (const double tau : {0.01, 1.0, 8.0}) {
+            const auto layer = solve_layer(Slab<double>(1.0, g, tau), matched, matched, ordinates(8));
+            for (const double mu : {1.0, 0.5, 0.1}) {
+                INFO("g " << g << " tau " << tau << " mu " << mu);
+                CHECK(std::fabs(layer.reflectance(mu).total() + layer.transmittance(mu) - 1) < 1e-13);
+                CHECK(layer.direct_transmittance(mu) + layer.forward_peak_transmittance(mu) <= layer.transmittance(mu));
+            }
+        }
+}
