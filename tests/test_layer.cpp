@@ -575,3 +575,21 @@ TEST_CASE("bad input is rejected with a message naming the parameter") {
     r.incidence = {0.0};
     CHECK_THROWS_WITH(solve_layer(slab, top, bottom, with_ordinates(4), r), doctest::Contains("request.incidence"));
 }
+
+TEST_CASE("light from below is outside a LayeredSurface's domain: 0 from every function, not the top face's inner reflection") {
+    // LayeredSurface is one-sided (light from above). brdf(light below, viewer below) used to return the rough top
+    // interface's reflection from inside, a value that belongs to no layer. The turned-over layer answers instead.
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const Slab<double> slab(0.9, 0.8, 1.0);
+    const auto layer = solve_layer(slab, top, bottom, with_ordinates(6));
+    const Vec3<double> below_i = direction(-0.7, 0.0), below_o = direction(-0.5, 2.0), above_o = direction(0.5, 2.0);
+    REQUIRE(top.brdf(below_i, below_o) > 0);  // the value the layer used to return
+    CHECK(layer.brdf(below_i, below_o) == 0.0);
+    CHECK(layer.subsurface_brdf(below_i, below_o) == 0.0);
+    CHECK(layer.btdf(below_i, above_o) == 0.0);
+    CHECK(layer.brdf(below_i, above_o) == 0.0);
+    const auto flipped = solve_layer(slab, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0),
+                                     with_ordinates(6));
+    const Vec3<double> up_i = direction(0.7, 0.0), down_o = direction(-0.5, 2.0);
+    CHECK(flipped.btdf(up_i, down_o) > 0);  // (this symmetric layer turned over is itself)
+}

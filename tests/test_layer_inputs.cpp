@@ -1,6 +1,6 @@
 // The layer API fed as a new user would feed it: solve_layer and solve_stack with extreme and degenerate
 // parameters, options and requests, then every public evaluation function of the result (brdf,
-// subsurface_brdf, btdf, albedo, transmittance, direct_transmittance, direct_reflectance, ambient, with and
+// subsurface_brdf, btdf, reflectance, transmittance, direct_* and forward_peak_*, ambient, with and
 // without a Workspace) at extreme and degenerate arguments. Accepted input must give finite values in their
 // physical ranges with energy never created (beyond rounding; the two documented limitations, README "Known
 // limitations", get their measured bounds); rejected input must throw std::invalid_argument naming the
@@ -128,19 +128,23 @@ void check_surface(const LayeredSurface<double>& s, const std::string& label, do
     for (double mu : {denormal, 1e-300, 1e-9, 0.3, 0.7, 1.0}) {
         const auto a = s.reflectance(mu);
         const double t = s.transmittance(mu), dt = s.direct_transmittance(mu), dr = s.direct_reflectance(mu);
+        const double pt = s.forward_peak_transmittance(mu), pr = s.forward_peak_reflectance(mu);
         const std::string at = " at mu = " + fmt(mu) + ": R = " + fmt(a.surface) + " + " + fmt(a.subsurface) +
-                               ", T = " + fmt(t) + ", direct T = " + fmt(dt) + ", direct R = " + fmt(dr);
+                               ", T = " + fmt(t) + ", direct T = " + fmt(dt) + ", direct R = " + fmt(dr) +
+                               ", forward peak T = " + fmt(pt) + ", R = " + fmt(pr);
         f.expect(in01(a.surface, energy_slack) && in01(a.subsurface, energy_slack) && in01(t, energy_slack) &&
-                     in01(dt, energy_slack) && in01(dr, energy_slack),
+                     in01(dt, energy_slack) && in01(dr, energy_slack) && in01(pt, energy_slack) && in01(pr, energy_slack),
                  "outside [0, 1]" + at);
-        f.expect(dt <= t && dr <= a.subsurface, "direct part exceeds its total" + at);
+        // (dt + pt rounds delta-M's beam, which the totals contain: 1e-15 relative slack)
+        f.expect(dt + pt <= t * (1 + 1e-15) && dr + pr <= a.subsurface * (1 + 1e-15), "direct part exceeds its total" + at);
         f.expect(a.total() + t <= 1 + energy_slack, "energy created (R + T - 1 = " + fmt(a.total() + t - 1) + ")" + at);
     }
     // Cosines outside (0, 1]: documented 0.
     for (double mu : {0.0, -0.0, -denormal, -0.5, -1.0, std::nextafter(1.0, 2.0), 1 + 1e-12, 2.0, inf, -inf, not_a_number}) {
         const auto a = s.reflectance(mu);
         f.expect(a.surface == 0 && a.subsurface == 0 && s.transmittance(mu) == 0 && s.direct_transmittance(mu) == 0 &&
-                     s.direct_reflectance(mu) == 0,
+                     s.direct_reflectance(mu) == 0 && s.forward_peak_transmittance(mu) == 0 &&
+                     s.forward_peak_reflectance(mu) == 0,
                  "not 0 outside (0, 1] at mu = " + fmt(mu));
     }
 

@@ -496,6 +496,8 @@ StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOper
 /// Directions are expected to be unit vectors and are not normalized; a finite non-unit vector gives a finite
 /// value >= 0 (its |z| clamped to 1, its azimuth taken from its x and y) that means nothing in particular.
 /// (tests/test_layer_inputs.cpp checks all of this.)
+/// One-sided: light arrives from above (wi.z > 0). Light from below (wi.z < 0) is outside the domain and gives 0
+/// from every function; for it, solve the layer turned over (bottom face first, its indices swapped).
 template <class Real = double>
 class LayeredSurface {
 public:
@@ -517,7 +519,8 @@ public:
     /// is not included: use the top's SmoothDielectric for it, and direct_reflectance() below).
     /// Outputs that were not requested (LayerRequest::outputs) evaluate to 0.
     Real brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
-        if (!finite(wi) || !finite(wo)) return Real(0);  // degenerate input (see the class comment)
+        // degenerate input and light from below (see the class comment)
+        if (!finite(wi) || !finite(wo) || !(wi.z > 0) || !(wo.z > 0)) return Real(0);
         const Real surface = (top_.rough() && includes(outputs_, LayerOutput::surface_reflection))
                                  ? top_.rough_interface()->brdf(wi, wo) : Real(0);
         return surface + subsurface_brdf(wi, wo, ws);

@@ -42,6 +42,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const double t = layer.transmittance(mu);
         require(std::isfinite(a.surface) && std::isfinite(a.subsurface) && std::isfinite(t), "finite reflectance and transmittance");
         require(a.surface >= 0 && a.subsurface >= 0 && t >= 0, "reflectance and transmittance >= 0");
+        const double dt = layer.direct_transmittance(mu), pt = layer.forward_peak_transmittance(mu);
+        const double dr = layer.direct_reflectance(mu), pr = layer.forward_peak_reflectance(mu);
+        require(dt >= 0 && pt >= 0 && dr >= 0 && pr >= 0, "direct beam and forward peak finite and >= 0");
+        // (dt + pt rounds delta-M's beam, which t contains: 1e-15 relative slack)
+        require(dt + pt <= t * (1 + 1e-15) && dr + pr <= a.subsurface * (1 + 1e-15),
+                "direct beam and forward peak within their totals");
         const stratum::Vec3<double> wi{std::sqrt(1 - mu * mu), 0, mu}, wo{0, std::sqrt(1 - mu * mu), mu};
         const double f = layer.brdf(wi, wo);
         require(std::isfinite(f) && f >= 0, "brdf finite and >= 0");
