@@ -451,6 +451,19 @@ PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<S
     return stack;
 }
 
+/// Whether the unscattered beam stays on its ordinate through the whole stack, so that the solver can keep it apart
+/// (LayeredSurface::separate_direct_beam): specular top and bottom faces, and interior faces that do not change
+/// the index (identity operators). An interior face that refracts maps an ordinate onto a cosine between
+/// ordinates, and the beam is then spread over them (README, known limitations).
+template <class Real>
+bool beam_stays_on_its_ordinate(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
+                                const Boundary<Real>& bottom) noexcept {
+    if (top.rough() || bottom.rough()) return false;
+    for (const Boundary<Real>& b : interior)
+        if (b.rough() || b.eta_above() != b.eta_below()) return false;
+    return true;
+}
+
 /// Mode k of a prepared slab (slab.hpp). A phase function too peaked for the ordinates (|g| near 1 without delta-M,
 /// or any g < 0 near -1, whose backward peak delta-M cannot remove) has a truncated expansion that is not admissible
 /// on them: the slab solver then regularizes its aliased part (regularize_aliased_phase = true), which keeps the
@@ -1042,8 +1055,14 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.exit_bottom_ = s.bottom_face().transmittance_at_ordinates();
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     if (includes(request.outputs, LayerOutput::ambient)) s.solve_ambient();  // 5.
-    if (!top.rough() && !bottom.rough() && slabs.size() == 1)  // 6.
-        s.separate_direct_beam(stack.slabs[0].slab.optical_thickness(), slabs[0].optical_thickness());
+    if (detail::beam_stays_on_its_ordinate(top, interior, bottom)) {  // 6.
+        Real scaled_tau = 0, true_tau = 0;
+        for (std::size_t i = 0; i < slabs.size(); ++i) {
+            scaled_tau += stack.slabs[i].slab.optical_thickness();
+            true_tau += slabs[i].optical_thickness();
+        }
+        s.separate_direct_beam(scaled_tau, true_tau);
+    }
     s.precompute_incidences();  // 7.
     return s;
 }
