@@ -4,6 +4,8 @@
 
 #include <stratum/layer.hpp>
 
+#include <vector>
+
 namespace {
 
 using Real = double;
@@ -66,6 +68,19 @@ void BM_layer_solve_and_first_reflectance(benchmark::State& state) {
     state.SetLabel(prepared ? "prepared faces, M = 16" : "plain faces, M = 16");
 }
 BENCHMARK(BM_layer_solve_and_first_reflectance)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Three wavelengths (RGB) of Stam's skin from nothing, all outputs: the faces are prepared once (solve_spectral).
+// Compare with BM_layer_solve_full at the same M (one wavelength).
+void BM_layer_solve_spectral_rgb(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    const stratum::RoughDielectric<Real> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const std::vector<stratum::Slab<Real>> rgb = {stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5),
+                                                  stratum::Slab<Real>::from_transparency(0.85, 0.8, 0.45),
+                                                  stratum::Slab<Real>::from_transparency(0.8, 0.8, 0.4)};
+    for (auto _ : state) benchmark::DoNotOptimize(stratum::solve_spectral(rgb, top, bottom, options));
+}
+BENCHMARK(BM_layer_solve_spectral_rgb)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
 // Reflection only, modes chosen by a tolerance of 1e-3.
 void BM_layer_solve_reflection_tol1e3(benchmark::State& state) {

@@ -191,3 +191,18 @@ TEST_CASE("prepared boundaries in float") {
     CHECK(a.reflectance(0.5f).total() == b.reflectance(0.5f).total());
     CHECK(a.transmittance(0.5f) == b.transmittance(0.5f));
 }
+
+TEST_CASE("solve_spectral: one layer per slab, each identical to its own solve") {
+    LayerOptions options;
+    options.ordinates = 5;
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    // Skin-like red, green and blue: albedo and thickness vary, g too.
+    const std::vector<Slab<double>> rgb = {{0.99, 0.8, 1.5}, {0.95, 0.78, 1.2}, {0.9, 0.75, 1.0}};
+    for (const LayerRequest<double>& request : requests()) {
+        const auto layers = stratum::solve_spectral(rgb, top, bottom, options, request);
+        REQUIRE(layers.size() == rgb.size());
+        for (std::size_t i = 0; i < rgb.size(); ++i)
+            check_same(outputs(solve_layer(rgb[i], top, bottom, options, request)), outputs(layers[i]), request);
+    }
+    CHECK(stratum::solve_spectral<double>({}, top, bottom).empty());
+}

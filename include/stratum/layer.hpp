@@ -1249,4 +1249,21 @@ LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const PreparedBoundary<
     return solve_stack(top, std::vector<Slab<Real>>{slab}, std::vector<PreparedBoundary<Real>>{}, bottom, request);
 }
 
+/// Solves one layer per slab between the same two faces: spectral samples (RGB, or 16 to 64 wavelengths of one
+/// material), or variants of a material. The faces' operators are built once (PreparedBoundary), so n slabs cost
+/// one face preparation and n slab solves; each result is identical to its own solve_layer. Faces whose index or
+/// roughness varies with wavelength cannot be shared: solve those one by one.
+template <class Real>
+std::vector<LayeredSurface<Real>> solve_spectral(const std::vector<Slab<Real>>& slabs,
+                                                 const detail::non_deduced_t<Boundary<Real>>& top,
+                                                 const detail::non_deduced_t<Boundary<Real>>& bottom,
+                                                 const LayerOptions& options = {},
+                                                 const detail::non_deduced_t<LayerRequest<Real>>& request = {}) {
+    const PreparedBoundary<Real> prepared_top(top, options), prepared_bottom(bottom, options);
+    std::vector<LayeredSurface<Real>> layers;
+    layers.reserve(slabs.size());
+    for (const Slab<Real>& slab : slabs) layers.push_back(solve_layer(slab, prepared_top, prepared_bottom, request));
+    return layers;
+}
+
 }  // namespace stratum
