@@ -59,6 +59,7 @@ TEST_CASE("the unscattered beam is attenuated by the true optical thickness, not
 }
 
 TEST_CASE("the unscattered beam does not depend on the discretization") {
+    // (It did, through delta-M: the scaled thickness (1 - g^2M albedo) tau changes with M.)
     const SmoothDielectric<double> top(1.0, 1.5), bottom(1.5, 1.0);
     const Slab<double> slab(0.9, 0.8, 2.0);
     const auto reference = solve_layer(slab, top, bottom, ordinates(4));

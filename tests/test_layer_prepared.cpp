@@ -1,8 +1,8 @@
 // PreparedBoundary: a solve from prepared boundaries must be the solve from the plain boundaries, to the last
 // bit (the operators are the same, only built earlier), for every kind of face, request and stack; one prepared
 // pair serves many slabs; boundaries prepared for different discretizations are refused by name.
-// One exception, by design: a request that solves fewer modes than were prepared (LayerRequest::max_modes, the
-// ambient term alone) uses operators whose azimuthal rule resolves all the prepared modes, finer than the rule a
+// One exception, by design: a request that solves fewer modes than were prepared (LayerRequest::max_modes, or
+// fluxes and the ambient term alone: mode 0) uses operators whose azimuthal rule resolves all the prepared modes, finer than the rule a
 // solve from the plain boundaries builds for its fewer modes: the two agree to that rule's error (<= 1e-12,
 // interface_operators.hpp), not bitwise.
 #include <doctest/doctest.h>
@@ -69,8 +69,12 @@ double relative_difference(const std::vector<double>& a, const std::vector<doubl
     return diff / size;
 }
 
-// Whether the request solves fewer modes than LayerOptions gives (see the top of this file).
-bool fewer_modes(const LayerRequest<double>& r) { return r.max_modes > 0 || r.outputs == LayerOutput::ambient; }
+// Whether the request solves fewer modes than LayerOptions gives (see the top of this file): a cap, or no angular
+// output (fluxes and the ambient term need mode 0 alone).
+bool fewer_modes(const LayerRequest<double>& r) {
+    return r.max_modes > 0 || !stratum::includes(r.outputs, LayerOutput::subsurface_reflection |
+                                                                LayerOutput::transmission | LayerOutput::operators);
+}
 
 void check_same(const std::vector<double>& plain, const std::vector<double>& prepared, const LayerRequest<double>& r) {
     if (fewer_modes(r))
@@ -80,13 +84,14 @@ void check_same(const std::vector<double>& plain, const std::vector<double>& pre
 }
 
 std::vector<LayerRequest<double>> requests() {
-    std::vector<LayerRequest<double>> r(6);
+    std::vector<LayerRequest<double>> r(7);
     r[1].max_modes = 5;
     r[2].tolerance = 1e-3;
     r[2].outputs = LayerOutput::subsurface_reflection;
     r[3].outputs = LayerOutput::ambient;
     r[4].incidence = {0.8, 1.0};
     r[5].outputs = LayerOutput::transmission | LayerOutput::operators;
+    r[6].outputs = LayerOutput::reflectance | LayerOutput::transmittance;
     return r;
 }
 
@@ -173,6 +178,10 @@ TEST_CASE("boundaries prepared for different discretizations are refused, naming
     CHECK_THROWS_WITH_AS(solve_stack(PreparedBoundary<double>(top, a), std::vector<Slab<double>>{slab, slab}, interior,
                                      PreparedBoundary<double>(bottom, a)),
                          doctest::Contains("interior[0] was prepared with options.delta_m"), std::invalid_argument);
+    // modes = 0 means 2M: the same discretization as modes = 2M, accepted.
+    LayerOptions explicit_modes = a;
+    explicit_modes.modes = 2 * a.ordinates;
+    CHECK_NOTHROW(solve_layer(slab, PreparedBoundary<double>(top, a), PreparedBoundary<double>(bottom, explicit_modes)));
     LayerOptions bad;
     bad.ordinates = 0;
     CHECK_THROWS_WITH_AS(PreparedBoundary<double>(top, bad), doctest::Contains("options.ordinates"), std::invalid_argument);

@@ -373,12 +373,17 @@ public:
 
     /// The same for a chosen side and lobe.
     void coefficients(Incidence side, bool transmission, Real mu_in, Real mu_out, Real* out) const noexcept {
+        coefficients(side, transmission, mu_in, mu_out, out, modes_);
+    }
+    /// The first `modes` (1 <= modes <= modes()) coefficients only, from an azimuthal rule that resolves just
+    /// those (fewer samples; equal to the full call's within the rule's error).
+    void coefficients(Incidence side, bool transmission, Real mu_in, Real mu_out, Real* out, int modes) const noexcept {
         if (specular_) {
-            for (int k = 0; k < modes_; ++k) out[k] = Real(0);
+            for (int k = 0; k < modes; ++k) out[k] = Real(0);
             return;
         }
         const detail::RoughKernel<Real> kernel{&*rough_, side, transmission};
-        azimuthal_coefficients(kernel, mu_in, mu_out, kernel.features(mu_in, mu_out), modes_, out, rule_);
+        azimuthal_coefficients(kernel, mu_in, mu_out, kernel.features(mu_in, mu_out), modes, out, rule_);
     }
 
 private:

@@ -11,8 +11,9 @@
 // (slab.hpp); the solver keeps the operators that map light entering through the top to the internal field
 // (Q_b, Q_e; see add_field_operators). Only that field lives on the ordinates: a rough face couples it to the
 // true incident and outgoing angles through its Fourier coefficients there (entry, exit_sum), and the fluxes
-// are rescaled to the faces' exact hemispherical totals. Between two specular faces the unscattered beam is
-// kept apart and computed exactly (DirectBeam); the light it scatters leaves a smooth face by interpolation
+// are rescaled to the faces' exact hemispherical totals. Between two specular faces (one slab, or slabs joined by
+// faces that do not change the index) the unscattered beam is kept apart and computed exactly (DirectBeam),
+// with delta-M's forward peak reported beside it; the light it scatters leaves a smooth face by interpolation
 // between ordinates, the documented approximation of this path (README, known limitations).
 //
 // Units: BRDF/BTDF per steradian (cosine not included), reflectance and transmittance as fractions of the
@@ -52,8 +53,8 @@ enum class LayerOutput : unsigned {
     transmission = 1u << 2,           ///< t_s: light leaving through the bottom (includes transmittance)
     ambient = 1u << 3,                ///< r_a: subsurface reflection of a uniform sky (Fourier mode 0 only)
     operators = 1u << 4,              ///< the whole layer's per-mode operators on the ordinates (for stacking)
-    reflectance = 1u << 5,            ///< reflectance(mu).subsurface and direct_reflectance(mu) alone (mode 0)
-    transmittance = 1u << 6,          ///< transmittance(mu) and direct_transmittance(mu) alone (mode 0)
+    reflectance = 1u << 5,            ///< reflectance(mu).subsurface, direct_ and forward_peak_reflectance alone (mode 0)
+    transmittance = 1u << 6,          ///< transmittance(mu), direct_ and forward_peak_transmittance alone (mode 0)
     all = (1u << 7) - 1,
 };
 constexpr LayerOutput operator|(LayerOutput a, LayerOutput b) noexcept {
@@ -92,8 +93,8 @@ template <class Real = double>
 struct LayerRequest {
     LayerOutput outputs = LayerOutput::all;
     /// Incidence cosines mu_0 in (0, 1] at which brdf/btdf/reflectance/transmittance will be evaluated; their internal fields
-    /// (and the top face's hemispherical reflectance) are precomputed, so evaluation there skips the top interface's
-    /// coefficients, its reflectance integral and the per-mode solve.
+    /// (and, when surface_reflection is requested, the top face's hemispherical reflectance) are precomputed, so
+    /// evaluation there skips the top interface's coefficients, its reflectance integral and the per-mode solve.
     /// Other incidences still work (computed on the fly).
     std::vector<Real> incidence;
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
@@ -101,7 +102,7 @@ struct LayerRequest {
     /// 0: everything exact to the discretization. > 0: (a) modes are solved in order and the loop stops
     /// after two consecutive modes whose operators are below tolerance relative to mode 0; (b) a slab with
     /// e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode; docs/physics.md section 6) is solved as
-    /// semi-infinite when transmission is not requested.
+    /// semi-infinite when neither transmission nor transmittance is requested.
     Real tolerance = 0;
 };
 
@@ -215,9 +216,13 @@ private:
 /// prepare the faces once and pass them to solve_layer / solve_stack for every slab (an edit of albedo, g or
 /// thickness, another wavelength), which then pays for the slab alone. The result is identical to a solve from
 /// the plain Boundary, bit for bit, when the request solves all the prepared modes; a request for fewer
-/// (LayerRequest::max_modes, the ambient term alone) uses the prepared operators, whose azimuthal rule resolves
-/// more modes than it needs: equal within that rule's error (1e-12). A specular (smooth or index-matched) face has cheap operators and keeps none: they are built
+/// (LayerRequest::max_modes, or no angular output: fluxes and the ambient term need mode 0 alone) uses the
+/// prepared operators, whose azimuthal rule resolves more modes than it needs: equal within that rule's error
+/// (1e-12). A specular (smooth or index-matched) face has cheap operators and keeps none: they are built
 /// at each solve. Immutable; copies share the operators; usable from several threads at once.
+template <class Real>
+class LayeredSurface;
+
 template <class Real = double>
 class PreparedBoundary {
 public:
@@ -229,32 +234,48 @@ public:
         detail::require_count("options.ordinates", options.ordinates, 1);
         detail::require_count("options.modes", options.modes, 0);
         if (!boundary.rough()) return;
-        const int modes = options.modes > 0 ? options.modes : 2 * options.ordinates;
-        operators_ = std::make_shared<const InterfaceOperators<Real>>(
-            boundary.operators(gauss_legendre_half<Real>(options.ordinates), modes, options));
+        const Quadrature<Real> q = gauss_legendre_half<Real>(options.ordinates);
+        operators_ = std::make_shared<const InterfaceOperators<Real>>(boundary.operators(q, modes(), options));
+        // The hemispherical transmittance at each ordinate from either side (what leaves a layer through the
+        // face): the renormalized operators hold it already, otherwise 2M integrals, here and not at every solve.
+        for (const Incidence side : {Incidence::from_above, Incidence::from_below}) {
+            std::vector<Real>& t = side == Incidence::from_above ? ordinate_above_ : ordinate_below_;
+            const auto& totals = operators_->ordinate_totals(side);
+            for (std::size_t i = 0; i < q.size(); ++i)
+                t.push_back(totals.size() == q.size() ? totals[i].transmittance
+                                                      : boundary.hemispherical_transmittance(
+                                                            side == Incidence::from_above ? q.nodes[i] : -q.nodes[i]));
+        }
     }
 
     const Boundary<Real>& boundary() const noexcept { return boundary_; }
-    /// The options the operators were built for (a solve must use the same ordinates and renormalization, and
-    /// at most as many modes).
+    /// The options the operators were built for (all the faces of one solve must share them).
     const LayerOptions& options() const noexcept { return options_; }
+    /// The number of Fourier modes prepared: options().modes, or 2M for 0.
+    int modes() const noexcept { return options_.modes > 0 ? options_.modes : 2 * options_.ordinates; }
     /// The prepared operators; null for a specular face.
     const std::shared_ptr<const InterfaceOperators<Real>>& operators() const noexcept { return operators_; }
-    /// The hemispherical transmittance of light arriving from `side`, tabulated on first use for a rough face
-    /// (for the solver: the layers solved with this face share the table).
+
+private:
+    template <class R>
+    friend LayeredSurface<R> solve_stack(const PreparedBoundary<R>&, const std::vector<Slab<R>>&,
+                                         const std::vector<PreparedBoundary<R>>&, const PreparedBoundary<R>&,
+                                         const detail::non_deduced_t<LayerRequest<R>>&);
+    // For the solver: the transmittance of light arriving from `side`, tabulated on first use for a rough face
+    // and shared by the layers solved with this face; and its values at the ordinates (empty: specular face).
     const std::shared_ptr<const detail::EntryTransmittance<Real>>& entry_transmittance(Incidence side) const noexcept {
         return side == Incidence::from_above ? from_above_ : from_below_;
     }
+    const std::vector<Real>& ordinate_transmittance(Incidence side) const noexcept {
+        return side == Incidence::from_above ? ordinate_above_ : ordinate_below_;
+    }
 
-private:
     Boundary<Real> boundary_;
     LayerOptions options_;
     std::shared_ptr<const InterfaceOperators<Real>> operators_;
     std::shared_ptr<const detail::EntryTransmittance<Real>> from_above_, from_below_;
+    std::vector<Real> ordinate_above_, ordinate_below_;
 };
-
-template <class Real>
-class LayeredSurface;
 
 /// Solves a stack: `top` boundary, then slabs[0], interior[0], slabs[1], ..., slabs[N-1], then `bottom`
 /// (interior.size() == slabs.size() - 1). Adjacent indices must agree (top.eta_below() ==
@@ -382,7 +403,7 @@ Matrix<Real> mode_matrix(const FourierOperators<Real>& f, int k) {
     return a;
 }
 
-/// Semi-infinite shortcut (LayerRequest::tolerance, when transmission is not requested): the diffuse field decays
+/// Semi-infinite shortcut (LayerRequest::tolerance, when neither transmission nor transmittance is requested): the diffuse field decays
 /// into the slab no faster than e^{-lambda_min tau} (lambda_min: the smallest mode-0 eigenvalue), which is slower
 /// than the beam's e^{-tau}; so a slab with e^{-lambda_min tau} < tolerance (not e^{-tau} < tolerance) is solved
 /// as semi-infinite.
@@ -409,6 +430,7 @@ struct PreparedOperators {
     SharedOperators<Real> top, bottom;
     std::vector<SharedOperators<Real>> interior;  // empty, or one per interior face
     std::shared_ptr<const EntryTransmittance<Real>> top_entry, bottom_entry;  // light from outside the layer
+    std::vector<Real> top_exit, bottom_exit;  // transmittance out of the layer at the ordinates (empty: compute)
 };
 
 /// Everything below the top face, ready for the per-mode adding (stack_mode).
@@ -529,7 +551,8 @@ public:
     const std::vector<ComponentOperators<Real>>& mode_operators() const noexcept { return whole_; }
 
     /// Total BRDF above the layer, r_12 + r_s (the specular reflection of a smooth top is a delta and
-    /// is not included: use the top's SmoothDielectric for it, and direct_reflectance() below).
+    /// is not included: use the top's SmoothDielectric for it, and direct_reflectance() and
+    /// forward_peak_reflectance() below).
     /// Outputs that were not requested (LayerRequest::outputs) evaluate to 0.
     Real brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         // degenerate input and light from below (see the class comment)
@@ -554,7 +577,8 @@ public:
     Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return subsurface_brdf(wi, wo, ws); }
 
     /// t_s: BTDF from above (wi.z > 0) to below (wo.z < 0) through the whole layer. Between two specular
-    /// boundaries the unscattered beam is a delta, not part of t_s: see direct_transmittance().
+    /// boundaries the unscattered beam is a delta, not part of t_s: see direct_transmittance() and
+    /// forward_peak_transmittance().
     Real btdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         if (!includes(outputs_, LayerOutput::transmission) || !(wi.z > 0) || !(wo.z < 0) || !finite(wi) || !finite(wo))
             return Real(0);
@@ -644,10 +668,7 @@ private:
                                          const std::vector<PreparedBoundary<R>>&, const PreparedBoundary<R>&,
                                          const detail::non_deduced_t<LayerRequest<R>>&);
 
-    LayeredSurface(Boundary<Real> top, Boundary<Real> bottom)
-        : top_(std::move(top)), bottom_(std::move(bottom)),
-          top_entry_(std::make_shared<const detail::EntryTransmittance<Real>>(top_, Incidence::from_above)),
-          bottom_entry_(std::make_shared<const detail::EntryTransmittance<Real>>(bottom_, Incidence::from_below)) {}
+    LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
 
     // The steps of solve() that fill the layer (defined after it, at the end of this file).
     void solve_modes(const detail::PreparedStack<Real>& stack, int modes, Real tolerance);
@@ -658,9 +679,10 @@ private:
     void precompute_incidences();
 
 
-    // The top face's hemispherical reflectance (an integral for a rough face), precomputed at the requested incidences.
+    // The top face's hemispherical reflectance (an integral for a rough face), precomputed at the requested incidences
+    // when LayerOutput::surface_reflection was requested.
     Real surface_reflectance(Real mu_i) const {
-        for (std::size_t j = 0; j < incidence_.size(); ++j)
+        for (std::size_t j = 0; j < cached_surface_.size(); ++j)
             if (incidence_[j] == mu_i) return cached_surface_[j];
         return top_.hemispherical_reflectance(mu_i);
     }
@@ -711,11 +733,12 @@ private:
                                                      : boundary().hemispherical_transmittance(from_inside(nodes[i]));
             return t;
         }
-        // I_k (k < ops().modes()) of a rough face's transmission between |cosine| mu outside and mu_inside inside,
-        // for light crossing the given way.
+        // I_k (k < the layer's modes()) of a rough face's transmission between |cosine| mu outside and mu_inside
+        // inside, for light crossing the given way (only the solved modes: the operators may hold more, prepared
+        // for another request, and mode 0 alone needs far fewer azimuthal samples).
         void transmission(Crossing c, Real mu, Real mu_inside, Real* out) const noexcept {
-            if (c == Crossing::entering) ops().coefficients(incidence(c), true, mu, mu_inside, out);
-            else ops().coefficients(incidence(c), true, mu_inside, mu, out);
+            if (c == Crossing::entering) ops().coefficients(incidence(c), true, mu, mu_inside, out, layer.modes_);
+            else ops().coefficients(incidence(c), true, mu_inside, mu, out, layer.modes_);
         }
     };
     Face top_face() const noexcept { return Face{*this, false}; }
@@ -1035,12 +1058,16 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                                                  const detail::PreparedOperators<Real>& prepared) {
     detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
     LayeredSurface s(top, bottom);
-    if (prepared.top_entry) s.top_entry_ = prepared.top_entry;
-    if (prepared.bottom_entry) s.bottom_entry_ = prepared.bottom_entry;
+    s.top_entry_ = prepared.top_entry ? prepared.top_entry
+                                      : std::make_shared<const detail::EntryTransmittance<Real>>(top, Incidence::from_above);
+    s.bottom_entry_ = prepared.bottom_entry
+                          ? prepared.bottom_entry
+                          : std::make_shared<const detail::EntryTransmittance<Real>>(bottom, Incidence::from_below);
     s.outputs_ = request.outputs;
     s.q_ = gauss_legendre_half<Real>(options.ordinates);
     s.incidence_ = request.incidence;
-    for (const Real mu : s.incidence_) s.cached_surface_.push_back(top.hemispherical_reflectance(mu));
+    if (includes(request.outputs, LayerOutput::surface_reflection))  // (an integral each for a rough face)
+        for (const Real mu : s.incidence_) s.cached_surface_.push_back(top.hemispherical_reflectance(mu));
     const int modes = detail::mode_count(options, request);
     if (modes == 0) return s;
 
@@ -1051,8 +1078,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.bottom_ops_ = face(bottom, prepared.bottom);
     const detail::PreparedStack<Real> stack =
         detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request, prepared.interior);
-    s.exit_top_ = s.top_face().transmittance_at_ordinates();  // 3.
-    s.exit_bottom_ = s.bottom_face().transmittance_at_ordinates();
+    s.exit_top_ = prepared.top_exit.empty() ? s.top_face().transmittance_at_ordinates() : prepared.top_exit;  // 3.
+    s.exit_bottom_ = prepared.bottom_exit.empty() ? s.bottom_face().transmittance_at_ordinates() : prepared.bottom_exit;
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     if (includes(request.outputs, LayerOutput::ambient)) s.solve_ambient();  // 5.
     if (detail::beam_stays_on_its_ordinate(top, interior, bottom)) {  // 6.
@@ -1211,7 +1238,8 @@ inline void require_same_options(const std::string& name, const LayerOptions& op
                               std::to_string(top));
     };
     if (options.ordinates != reference.ordinates) differ("ordinates", options.ordinates, reference.ordinates);
-    if (options.modes != reference.modes) differ("modes", options.modes, reference.modes);
+    const auto resolved = [](const LayerOptions& o) { return o.modes > 0 ? o.modes : 2 * o.ordinates; };  // 0: 2M
+    if (resolved(options) != resolved(reference)) differ("modes", resolved(options), resolved(reference));
     if (options.delta_m != reference.delta_m) differ("delta_m", options.delta_m, reference.delta_m);
     if (options.renormalization != reference.renormalization)
         differ("renormalization", static_cast<long long>(options.renormalization),
@@ -1229,9 +1257,14 @@ LayeredSurface<Real> solve_stack(const PreparedBoundary<Real>& top, const std::v
                                  const detail::non_deduced_t<LayerRequest<Real>>& request) {
     const LayerOptions& options = top.options();
     detail::require_same_options("bottom", bottom.options(), options);
-    detail::PreparedOperators<Real> prepared{top.operators(), bottom.operators(), {},
+    // Light leaves the layer through the top from below it, through the bottom from above it.
+    detail::PreparedOperators<Real> prepared{top.operators(),
+                                             bottom.operators(),
+                                             {},
                                              top.entry_transmittance(Incidence::from_above),
-                                             bottom.entry_transmittance(Incidence::from_below)};
+                                             bottom.entry_transmittance(Incidence::from_below),
+                                             top.ordinate_transmittance(Incidence::from_below),
+                                             bottom.ordinate_transmittance(Incidence::from_above)};
     std::vector<Boundary<Real>> faces;
     for (std::size_t i = 0; i < interior.size(); ++i) {
         detail::require_same_options("interior[" + std::to_string(i) + "]", interior[i].options(), options);
@@ -1251,7 +1284,8 @@ LayeredSurface<Real> solve_layer(const Slab<Real>& slab, const PreparedBoundary<
 
 /// Solves one layer per slab between the same two faces: spectral samples (RGB, or 16 to 64 wavelengths of one
 /// material), or variants of a material. The faces' operators are built once (PreparedBoundary), so n slabs cost
-/// one face preparation and n slab solves; each result is identical to its own solve_layer. Faces whose index or
+/// one face preparation and n slab solves; each result equals its own solve_layer (bit for bit, or within 1e-12
+/// as for PreparedBoundary when the request solves fewer modes than the options give). Faces whose index or
 /// roughness varies with wavelength cannot be shared: solve those one by one.
 template <class Real>
 std::vector<LayeredSurface<Real>> solve_spectral(const std::vector<Slab<Real>>& slabs,
