@@ -309,17 +309,43 @@ ComponentOperators<Real> interface_component(const InterfaceOperators<Real>& ops
     return c;
 }
 
-/// The slab's per-mode operators, with delta-M scaling and the Henyey-Greenstein phase matrices.
+/// The slab prepared for its per-mode operators: delta-M scaled (or not), with its phase matrices.
 template <class Real>
 struct SlabModes {
     Slab<Real> slab;  // possibly delta-M scaled
     PhaseFourierMatrices<Real> phase;
 };
 
+/// prepare_slab for a phase function given by its Legendre moments (Slab::with_phase_moments): the first
+/// L = 2M, delta-M scaled with f = chi_L when the medium scatters forwards (g > 0) and chi_L is given and positive
+/// (a forward peak beyond what the ordinates resolve), plainly truncated otherwise (moments beyond those given
+/// are 0: nothing to truncate).
+template <class Real>
+SlabModes<Real> prepare_slab_from_moments(const Slab<Real>& s, const Quadrature<Real>& q, int modes, bool delta_m,
+                                          Real tau) {
+    const std::size_t count = 2 * q.size();
+    const std::vector<Real>& given = s.phase_moments();
+    std::vector<Real> chi(count, Real(0));
+    for (std::size_t l = 0; l < count && l < given.size(); ++l) chi[l] = given[l];
+    // As for Henyey-Greenstein (prepare_slab): delta-M only for a forward-scattering medium (g = chi_1 > 0).
+    const Real f = delta_m && s.g() > Real(0) && given.size() > count ? given[count] : Real(0);
+    if (!(f > 0)) {
+        return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
+                phase_fourier_matrices(chi, q.nodes, modes)};
+    }
+    // Wiscombe 1977 (docs/physics.md section 2): chi'_l = (chi_l - f) / (1 - f), 1 - Omega' = (1 - Omega) / (1 - f
+    // Omega), tau' = (1 - f Omega) tau; 1 - f Omega = (1 - f) + f (1 - Omega) without cancellation.
+    for (std::size_t l = 1; l < count; ++l) chi[l] = (chi[l] - f) / (Real(1) - f);
+    const Real one_minus_f_omega = (Real(1) - f) + f * s.one_minus_albedo();
+    return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(), one_minus_f_omega * tau),
+            phase_fourier_matrices(chi, q.nodes, modes)};
+}
+
 template <class Real>
 SlabModes<Real> prepare_slab(const Slab<Real>& s, const Quadrature<Real>& q, int modes, bool delta_m, Real tau_override) {
     const int moments = 2 * static_cast<int>(q.size());
     const Real tau = tau_override;
+    if (!s.henyey_greenstein()) return prepare_slab_from_moments(s, q, modes, delta_m, tau);
     // Delta-M folds a FORWARD peak into the unscattered beam; for g < 0 (a backward peak) its moments
     // (g^l - f) / (1 - f) would be far outside [-1, 1], so backward-scattering media are truncated plainly.
     if (delta_m && s.g() > Real(0)) {

@@ -66,10 +66,11 @@
 
 namespace stratum {
 
-/// A homogeneous slab: single-scattering albedo Omega in [0, 1], Henyey-Greenstein asymmetry g in (-1, 1),
-/// optical thickness tau in [0, +inf] (+inf: semi-infinite). Both Omega and 1 - Omega are stored, so a
-/// slab built from 1 - Omega (from_one_minus_albedo) keeps values such as 1e-20 that 1 - Omega cannot.
-/// Constructors throw std::invalid_argument for values outside these ranges (NaN included).
+/// A homogeneous slab: single-scattering albedo Omega in [0, 1], optical thickness tau in [0, +inf] (+inf:
+/// semi-infinite), and a phase function: Henyey-Greenstein of asymmetry g in (-1, 1), or any phase function given
+/// by its Legendre moments (with_phase_moments: Rayleigh, tabulated Mie, measured data). Both Omega and 1 - Omega
+/// are stored, so a slab built from 1 - Omega (from_one_minus_albedo) keeps values such as 1e-20 that 1 - Omega
+/// cannot. Constructors throw std::invalid_argument for values outside these ranges (NaN included).
 template <class Real = double>
 class Slab {
 public:
@@ -87,6 +88,21 @@ public:
         return s;
     }
 
+    /// A phase function given by its Legendre moments chi_l = (1/2) int_{-1}^{1} p(c) P_l(c) dc (the phase
+    /// function normalized to 1 over the sphere is sum_l (2l + 1) chi_l P_l(cos theta) / (4 pi)): chi_0 = 1 and
+    /// |chi_l| <= 1, as for any phase function; g = chi_1 (0 if only chi_0 is given) must lie in (-1, 1). Moments
+    /// beyond those given are 0 (Rayleigh: {1, 0, 0.1}, exactly). The solver uses the first 2M (M ordinates;
+    /// delta-M, for g > 0, takes f = chi_2M when it is given and positive, docs/physics.md section 2).
+    static Slab with_phase_moments(Real albedo, std::vector<Real> moments, Real optical_thickness) {
+        if (moments.empty()) detail::fail_invalid_argument("stratum: moments is empty (chi_0 = 1 at least)");
+        if (!(moments[0] == Real(1))) detail::throw_out_of_range("moments[0]", moments[0], "{1} (a normalized phase function)");
+        for (std::size_t l = 1; l < moments.size(); ++l)
+            detail::require_closed(("moments[" + std::to_string(l) + "]").c_str(), moments[l], Real(-1), Real(1));
+        Slab s(albedo, moments.size() > 1 ? moments[1] : Real(0), optical_thickness);
+        s.moments_ = std::move(moments);
+        return s;
+    }
+
     /// Stam's parametrization by the transparency e^{-tau} in [0, 1] (0: semi-infinite, 1: empty).
     static Slab from_transparency(Real albedo, Real g, Real transparency) {
         detail::require_closed("transparency", transparency, Real(0), Real(1));
@@ -98,6 +114,9 @@ public:
     Real one_minus_albedo() const noexcept { return one_minus_albedo_; }
     Real g() const noexcept { return g_; }
     Real optical_thickness() const noexcept { return tau_; }
+    /// The phase function's Legendre moments as given to with_phase_moments; empty for Henyey-Greenstein.
+    const std::vector<Real>& phase_moments() const noexcept { return moments_; }
+    bool henyey_greenstein() const noexcept { return moments_.empty(); }
 
 private:
     static Real require_thickness(Real tau) {
@@ -105,6 +124,7 @@ private:
         return tau;
     }
     Real albedo_, one_minus_albedo_, g_, tau_;
+    std::vector<Real> moments_;  // empty: Henyey-Greenstein of asymmetry g_
 };
 
 /// Reflection and transmission operators of a bare slab for one Fourier mode (see the header comment

@@ -3,7 +3,7 @@
 //
 // It shares nothing with the solver but the Fresnel formula (stratum::fresnel_dielectric, tested on its own
 // in test_fresnel.cpp): the microfacet normals, the refraction, the free paths and the Henyey-Greenstein
-// scattering are sampled here from their definitions.
+// (or Rayleigh) scattering are sampled here from their definitions.
 //
 // Geometry. Medium 1 above, the layer (index n2, optical thickness tau, single-scattering albedo Omega,
 // Henyey-Greenstein asymmetry g) in the middle, medium 3 below. Directions are PROPAGATION directions in the
@@ -144,9 +144,23 @@ inline V3 scatter_hg(V3 d, double g, Rng& rng) {
     return unit((s * std::cos(phi)) * t + (s * std::sin(phi)) * b + c * d);
 }
 
+/// Rayleigh scattering of d: the cosine c has the density (3/8)(1 + c^2) on [-1, 1], whose CDF
+/// (c^3 + 3 c + 4) / 8 = u is inverted by Cardano's formula for the one real root of c^3 + 3c + (4 - 8u) = 0.
+inline V3 scatter_rayleigh(V3 d, Rng& rng) {
+    const double q = 4 * rng.uniform() - 2;  // -(4 - 8u) / 2
+    const double r = std::sqrt(q * q + 1);   // sqrt(q^2 + (p / 3)^3) with p = 3
+    double c = std::cbrt(q + r) + std::cbrt(q - r);
+    c = std::fmin(1.0, std::fmax(-1.0, c));
+    const double s = std::sqrt((1 - c) * (1 + c)), phi = 2 * pi * rng.uniform();
+    V3 t, b;
+    frame(d, t, b);
+    return unit((s * std::cos(phi)) * t + (s * std::sin(phi)) * b + c * d);
+}
+
 struct Layer {
     Boundary top, bottom;
     double albedo, g, tau;  // tau may be +inf
+    bool rayleigh = false;  // Rayleigh phase function instead of Henyey-Greenstein (g unused)
 };
 
 /// Counts of photon fates, and histograms of the exit directions over (mu, |dphi|) bins: mu bins equal in
@@ -227,7 +241,7 @@ inline Tally trace(const Layer& layer, double mu0, std::int64_t photons, std::ui
                 ++t.absorbed;
                 break;
             }
-            d = scatter_hg(d, layer.g, rng);
+            d = layer.rayleigh ? scatter_rayleigh(d, rng) : scatter_hg(d, layer.g, rng);
         }
     }
     return t;
