@@ -244,6 +244,8 @@ std::vector<Faces> face_kinds() {
         {"rough | rough", RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0)},
         {"rough | index matched", RoughDielectric<double>(0.3, 1.0, 1.4), Boundary<double>::index_matched(1.4)},
         {"index matched | index matched", Boundary<double>::index_matched(), Boundary<double>::index_matched()},
+        {"smooth | white Lambertian floor", SmoothDielectric<double>(1.0, 1.4), Boundary<double>::lambertian(1.0, 1.4)},
+        {"rough | black Lambertian floor", RoughDielectric<double>(0.3, 1.0, 1.4), Boundary<double>::lambertian(0.0, 1.4)},
     };
 }
 

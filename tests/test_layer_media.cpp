@@ -23,6 +23,7 @@ using stratum::Slab;
 using stratum::SmoothDielectric;
 using stratum::Vec3;
 using stratum::solve_layer;
+using stratum::solve_stack;
 
 namespace {
 
@@ -170,4 +171,82 @@ TEST_CASE("phase moments are validated where the slab is built") {
     CHECK_FALSE(s.henyey_greenstein());
     CHECK(s.phase_moments() == rayleigh);
     CHECK(Slab<double>(0.9, 0.5, 1.0).henyey_greenstein());
+}
+
+// 2 E_3(tau) = 2 int_0^1 mu e^{-tau/mu} dmu: the diffuse transmittance of a purely absorbing slab (midpoint rule,
+// 200000 points: the integrand is smooth, error ~1e-11).
+double two_e3(double tau) {
+    const int n = 200000;
+    double sum = 0;
+    for (int i = 0; i < n; ++i) {
+        const double mu = (i + 0.5) / n;
+        sum += mu * std::exp(-tau / mu);
+    }
+    return 2 * sum / n;
+}
+
+TEST_CASE("a Lambertian floor: closed forms for an empty and for a purely absorbing slab over it") {
+    const Boundary<double> open = Boundary<double>::index_matched(1.0);
+    const Boundary<double> floor = Boundary<double>::lambertian(0.6);
+    // No slab (tau = 0): the floor itself, R = A at every incidence, BRDF A / pi everywhere, nothing transmitted.
+    const auto bare = solve_layer(Slab<double>(0.9, 0.5, 0.0), open, floor, ordinates(8));
+    for (const double mu : {1.0, 0.7, 0.2}) {
+        CHECK(std::fabs(bare.reflectance(mu).total() - 0.6) < 1e-14);
+        CHECK(bare.transmittance(mu) == 0.0);
+        CHECK(bare.direct_reflectance(mu) == 0.0);
+        for (const double mo : {0.95, 0.5, 0.1})
+            CHECK(std::fabs(bare.subsurface_brdf(direction(mu, 0.0), direction(mo, 2.0)) - 0.6 / stratum_test::pi) < 1e-14);
+        CHECK(bare.btdf(direction(mu, 0.0), direction(-0.5, 2.0)) == 0.0);
+    }
+    // A purely absorbing slab over the floor: R = A e^{-tau / mu0} 2 E_3(tau) (down unscattered, diffused, up with
+    // the diffuse transmittance; an index-matched top reflects nothing back). The beam enters on the ordinates by
+    // interpolation of e^{-tau / mu}: its error falls with M (measured 4.4e-5 and 2.3e-6 relative at mu0 = 0.5,
+    // M = 16 and 32; 3.5e-7 and 1e-9 at mu0 = 1).
+    const double tau = 0.5, a = 0.6, e3 = two_e3(tau);
+    double previous = 1;
+    for (const int m : {16, 32}) {
+        const auto layer = solve_layer(Slab<double>(0.0, 0.0, tau), open, floor, ordinates(m));
+        for (const double mu : {1.0, 0.5}) {
+            const double exact = a * std::exp(-tau / mu) * e3;
+            const double error = std::fabs(layer.reflectance(mu).total() - exact) / exact;
+            INFO("M " << m << " mu0 " << mu << ": relative error " << error);
+            CHECK(error < (mu == 1.0 ? 1e-6 : 1e-4) / (m == 32 ? 16 : 1));
+            if (mu == 0.5) {
+                CHECK(error < previous);
+                previous = error;
+            }
+        }
+    }
+}
+
+TEST_CASE("a white floor under a conservative slab reflects everything; a floor under an opaque slab changes nothing") {
+    const Boundary<double> white = Boundary<double>::lambertian(1.0), white_dense = Boundary<double>::lambertian(1.0, 1.4);
+    const Slab<double> slab(1.0, 0.7, 2.0);
+    const auto open = solve_layer(slab, Boundary<double>::index_matched(1.0), white, ordinates(8));
+    const auto fresnel = solve_layer(slab, SmoothDielectric<double>(1.0, 1.4), white_dense, ordinates(8));
+    const auto rayleigh_layer = solve_layer(Slab<double>::with_phase_moments(1.0, rayleigh, 0.7),
+                                            SmoothDielectric<double>(1.0, 1.4), white_dense, ordinates(8));
+    for (const double mu : {1.0, 0.5, 0.05}) {
+        CHECK(std::fabs(open.reflectance(mu).total() - 1) < 1e-13);
+        CHECK(std::fabs(fresnel.reflectance(mu).total() - 1) < 1e-13);
+        CHECK(std::fabs(rayleigh_layer.reflectance(mu).total() - 1) < 1e-13);
+    }
+    const Slab<double> opaque(0.9, 0.8, std::numeric_limits<double>::infinity());
+    const auto over_floor = solve_layer(opaque, SmoothDielectric<double>(1.0, 1.4), white_dense, ordinates(8));
+    const auto alone = solve_layer(opaque, SmoothDielectric<double>(1.0, 1.4), SmoothDielectric<double>(1.4, 1.0), ordinates(8));
+    CHECK(std::fabs(over_floor.reflectance(0.6).total() - alone.reflectance(0.6).total()) < 1e-15);
+}
+
+TEST_CASE("a Lambertian floor is only a bottom boundary, and its albedo is validated") {
+    const Boundary<double> floor = Boundary<double>::lambertian(0.5);
+    const Boundary<double> open = Boundary<double>::index_matched(1.0);
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    CHECK_THROWS_WITH_AS(solve_layer(slab, floor, open), doctest::Contains("not the top"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(solve_stack<double>(open, {slab, slab}, {floor}, open), doctest::Contains("not interior[0]"),
+                         std::invalid_argument);
+    CHECK_THROWS_WITH_AS(Boundary<double>::lambertian(1.5), doctest::Contains("albedo"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(Boundary<double>::lambertian(std::nan("")), doctest::Contains("albedo"), std::invalid_argument);
+    CHECK(floor.lambertian());
+    CHECK(floor.floor_albedo() == 0.5);
+    CHECK_FALSE(open.lambertian());
 }

@@ -343,6 +343,28 @@ public:
         }
     }
 
+    /// An opaque Lambertian floor of albedo A under a medium (Boundary::lambertian): light arriving from above
+    /// is reflected with radiance A / pi times its irradiance, in mode 0 only, (R12)_nm = 2 A w_m mu_m for
+    /// every n (its flux 2 pi sum_n w_n mu_n R12_nm / (2 pi) = A w_m mu_m, since sum_n w_n mu_n = 1/2); nothing is
+    /// transmitted; R21 = 0 (nothing arrives from below an opaque floor). Throws std::invalid_argument for A
+    /// outside [0, 1], modes < 1 or an empty ordinate set.
+    static InterfaceOperators lambertian_floor(Real albedo, const Quadrature<Real>& ordinates, int modes) {
+        detail::require_closed("albedo", albedo, Real(0), Real(1));
+        detail::require_count("ordinates", static_cast<int>(ordinates.size()), 1);
+        InterfaceOperators ops(SmoothDielectric<Real>(Real(1), Real(1)), ordinates, modes);  // sizes; specular
+        const int m = static_cast<int>(ordinates.size());
+        ops.index_matched_ = false;
+        ops.t12_ = FourierOperators<Real>(m, modes);
+        ops.t21_ = FourierOperators<Real>(m, modes);
+        ops.totals_above_.assign(ordinates.size(), HemisphericalTotals<Real>{albedo, Real(0)});
+        ops.totals_below_.assign(ordinates.size(), HemisphericalTotals<Real>{Real(0), Real(0)});
+        for (int j = 0; j < m; ++j) {
+            const Real w = ordinates.weights[static_cast<std::size_t>(j)] * ordinates.nodes[static_cast<std::size_t>(j)];
+            for (int n = 0; n < m; ++n) ops.r12_(0, n, j) = 2 * albedo * w;
+        }
+        return ops;
+    }
+
     int size() const noexcept { return r12_.size; }
     int modes() const noexcept { return modes_; }
     /// True for index matching (T = identity, R = 0).

@@ -106,8 +106,8 @@ struct LayerRequest {
     Real tolerance = 0;
 };
 
-/// A boundary of a layer: rough (Beckmann microfacets) or specular (smooth or index-matched).
-/// Converts implicitly from RoughDielectric and SmoothDielectric.
+/// A boundary of a layer: rough (Beckmann microfacets), specular (smooth or index-matched), or an opaque
+/// Lambertian floor (the bottom of a layer only). Converts implicitly from RoughDielectric and SmoothDielectric.
 template <class Real = double>
 class Boundary {
 public:
@@ -115,29 +115,46 @@ public:
     Boundary(const SmoothDielectric<Real>& smooth) : smooth_(smooth) {}                                            // NOLINT
     /// Both sides of index eta: light crosses unchanged.
     static Boundary index_matched(Real eta = Real(1)) { return Boundary(SmoothDielectric<Real>(eta, eta)); }
+    /// An opaque diffuse floor under a medium of index eta: light from above is reflected with radiance
+    /// albedo / pi times its irradiance (bone under tissue, soil under a leaf, a white ground under paint);
+    /// nothing is transmitted. Only the bottom of a layer or stack. Throws std::invalid_argument for albedo outside
+    /// [0, 1] or eta outside [1e-4, 1e4].
+    static Boundary lambertian(Real albedo, Real eta = Real(1)) {
+        Boundary b(SmoothDielectric<Real>(eta, eta));
+        b.floor_albedo_ = detail::require_closed("albedo", albedo, Real(0), Real(1));
+        return b;
+    }
 
     bool rough() const noexcept { return rough_.has_value() && !rough_->index_matched() && !rough_->smooth(); }
+    bool lambertian() const noexcept { return floor_albedo_.has_value(); }
+    /// The albedo of a Lambertian floor (0 for any other boundary).
+    Real floor_albedo() const noexcept { return floor_albedo_.value_or(Real(0)); }
     Real eta_above() const noexcept { return smooth_.eta_above(); }
     Real eta_below() const noexcept { return smooth_.eta_below(); }
     const std::optional<RoughDielectric<Real>>& rough_interface() const noexcept { return rough_; }
     const SmoothDielectric<Real>& smooth_interface() const noexcept { return smooth_; }
 
     InterfaceOperators<Real> operators(const Quadrature<Real>& q, int modes, const LayerOptions& o) const {
+        if (lambertian()) return InterfaceOperators<Real>::lambertian_floor(*floor_albedo_, q, modes);
         return rough() ? InterfaceOperators<Real>(*rough_, q, modes, AzimuthalQuadrature<Real>(), o.renormalization)
                        : InterfaceOperators<Real>(smooth_, q, modes, o.specular_transmission);
     }
     /// Directional-hemispherical transmittance for light arriving with cosine mu (> 0 from above): an
-    /// integral for a rough face, the Fresnel value for a smooth one.
+    /// integral for a rough face, the Fresnel value for a smooth one, 0 for a Lambertian floor.
     Real hemispherical_transmittance(Real mu) const {
+        if (lambertian()) return Real(0);
         return rough() ? rough_->hemispherical_transmittance(mu) : smooth_.transmittance(mu);
     }
-    /// Directional-hemispherical reflectance for light arriving with cosine mu (> 0 from above), likewise.
+    /// Directional-hemispherical reflectance for light arriving with cosine mu (> 0 from above), likewise (a
+    /// Lambertian floor: its albedo from above, 0 from below).
     Real hemispherical_reflectance(Real mu) const {
+        if (lambertian()) return mu > 0 ? *floor_albedo_ : Real(0);
         return rough() ? rough_->hemispherical_reflectance(mu) : smooth_.reflectance(mu);
     }
 
 private:
     std::optional<RoughDielectric<Real>> rough_;
+    std::optional<Real> floor_albedo_;  // a Lambertian floor
     SmoothDielectric<Real> smooth_;  // the indices; the specular model when not rough
 };
 
@@ -387,6 +404,11 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
     require_count("options.modes", options.modes, 0);
     require_count("request.max_modes", request.max_modes, 0);
     require_count("slabs.size()", static_cast<int>(slabs.size()), 1);
+    if (top.lambertian()) fail_invalid_argument("stratum: a Lambertian floor can only be the bottom boundary, not the top");
+    for (std::size_t i = 0; i < interior.size(); ++i)
+        if (interior[i].lambertian())
+            fail_invalid_argument("stratum: a Lambertian floor can only be the bottom boundary, not interior[" +
+                                  std::to_string(i) + "]");
     if (!(request.tolerance >= 0 && request.tolerance < 1))
         throw_out_of_range("request.tolerance", request.tolerance, "[0, 1)");
     if (interior.size() + 1 != slabs.size())
@@ -506,7 +528,7 @@ PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<S
 template <class Real>
 bool beam_stays_on_its_ordinate(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                 const Boundary<Real>& bottom) noexcept {
-    if (top.rough() || bottom.rough()) return false;
+    if (top.rough() || bottom.rough() || bottom.lambertian()) return false;
     for (const Boundary<Real>& b : interior)
         if (b.rough() || b.eta_above() != b.eta_below()) return false;
     return true;
@@ -606,7 +628,8 @@ public:
     /// boundaries the unscattered beam is a delta, not part of t_s: see direct_transmittance() and
     /// forward_peak_transmittance().
     Real btdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
-        if (!includes(outputs_, LayerOutput::transmission) || !(wi.z > 0) || !(wo.z < 0) || !finite(wi) || !finite(wo))
+        if (!includes(outputs_, LayerOutput::transmission) || bottom_.lambertian() || !(wi.z > 0) || !(wo.z < 0) ||
+            !finite(wi) || !finite(wo))
             return Real(0);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
