@@ -1,5 +1,7 @@
 // libFuzzer target over the layer solver: a slab (albedo, g, thickness) between two faces (rough, smooth or
-// index matched) at a few ordinates. Promises checked: bad parameters throw std::invalid_argument; otherwise
+// index matched) at a few ordinates; then, chosen by the input's last byte (so that the older corpus keeps its
+// meaning: an exhausted input reads 0), the same slab with a phase function given by three arbitrary moments
+// (not necessarily positive definite) or over a Lambertian floor. Promises checked: bad parameters throw std::invalid_argument; otherwise
 // every output is finite and non-negative. Energy conservation is NOT checked here: with light nearly trapped
 // between two faces (total internal reflection at both, a nearly transparent slab, a rough face narrower than
 // the ordinates), the discrete field can create energy (up to half the incident flux measured; README, known
@@ -35,9 +37,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const auto bottom = face(in, n2, n3);
         stratum::LayerOptions options;
         options.ordinates = 1 + in.byte() % 6;
-        const auto layer = stratum::solve_layer(slab, top, bottom, options);
         const double mu = in.in(0, 1);
         if (!(mu > 0 && mu <= 1)) return 0;
+        const int variant = in.byte() % 3;
+        const stratum::Slab<double> medium =
+            variant == 1 ? stratum::Slab<double>::with_phase_moments(slab.albedo(), {1.0, in.in(-1, 1), in.in(-1, 1)},
+                                                                     slab.optical_thickness())
+                         : slab;
+        const stratum::Boundary<double> floor_or_bottom =
+            variant == 2 ? stratum::Boundary<double>::lambertian(in.in(0, 1), n2) : bottom;
+        const auto layer = stratum::solve_layer(medium, top, floor_or_bottom, options);
         const auto a = layer.reflectance(mu);
         const double t = layer.transmittance(mu);
         require(std::isfinite(a.surface) && std::isfinite(a.subsurface) && std::isfinite(t), "finite reflectance and transmittance");
