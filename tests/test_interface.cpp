@@ -441,3 +441,43 @@ TEST_CASE("hemispherical totals at cosines down to the smallest normal double ar
         CHECK(face.hemispherical_totals(0.0).reflectance == doctest::Approx(limit.reflectance).epsilon(1e-12));
     }
 }
+
+TEST_CASE("transport modes: radiance evaluates the BSDF the other way round, with the same sampling density") {
+    using stratum::TransportMode;
+    std::mt19937_64 rng(91);
+    for (const auto form : {Shadowing::height_correlated, Shadowing::masking_only}) {
+        const RoughDielectric<double> rd(0.4, 1.0, 1.5, form);
+        for (int i = 0; i < 2000; ++i) {
+            const Vec3<double> wi = random_direction(rng), wo = random_direction(rng);
+            const double u0 = uniform(rng), u1 = uniform(rng), u2 = uniform(rng);
+            // By definition: the value with the arguments exchanged.
+            CHECK(rd.eval(wi, wo, TransportMode::radiance) == rd.eval(wo, wi));
+            // Generalized reciprocity, btdf(wi, wo) / eta_wo^2 = btdf(wo, wi) / eta_wi^2 (height-correlated form),
+            // with the tolerance of the reciprocity test above (1 - F computed from either side of a facet).
+            const double t = rd.eval(wi, wo);
+            if (form == Shadowing::height_correlated && wi.z * wo.z < 0) {
+                const double eta_wi = wi.z > 0 ? 1.0 : 1.5, eta_wo = wo.z > 0 ? 1.0 : 1.5;
+                CHECK(std::fabs(rd.eval(wi, wo, TransportMode::radiance) - t * (eta_wi / eta_wo) * (eta_wi / eta_wo)) <=
+                      1e-9 * t + 1e-12);
+            }
+            // Sampling: the same direction and density, the radiance mode's value at it.
+            const auto a = rd.sample(wi, u0, u1, u2), b = rd.sample(wi, u0, u1, u2, TransportMode::radiance);
+            CHECK(a.wo.x == b.wo.x);
+            CHECK(a.wo.z == b.wo.z);
+            CHECK(a.pdf == b.pdf);
+            if (b.valid()) CHECK(b.value == rd.eval(wi, b.wo, TransportMode::radiance));
+        }
+    }
+    // A smooth face's delta samples: a refraction's weight value |wo.z| / pdf becomes (eta_wi / eta_wo)^2.
+    const RoughDielectric<double> smooth(0.0, 1.0, 1.5);
+    for (const double mu : {0.9, -0.9}) {
+        const Vec3<double> wi{std::sqrt(1 - mu * mu), 0.0, mu};
+        const auto refracted = smooth.sample(wi, 0.999, 0.5, 0.5, TransportMode::radiance);
+        REQUIRE(refracted.valid());
+        REQUIRE_FALSE(refracted.reflected);
+        const double ratio = mu > 0 ? 1.0 / 1.5 : 1.5;
+        CHECK(refracted.value * std::fabs(refracted.wo.z) / refracted.pdf == doctest::Approx(ratio * ratio).epsilon(1e-15));
+        const auto reflected = smooth.sample(wi, 0.0, 0.5, 0.5, TransportMode::radiance);
+        CHECK(reflected.value * std::fabs(reflected.wo.z) / reflected.pdf == doctest::Approx(1.0).epsilon(1e-15));
+    }
+}

@@ -85,6 +85,16 @@ namespace stratum {
 
 // Shadowing and HemisphericalTotals are declared in microfacet.hpp.
 
+/// Which way a path tracer follows light through eval and sample (pbrt's TransportMode, with this library's
+/// argument order):
+/// - importance: wi points to where the light (or a light-traced particle) comes from, wo to where it goes; the
+///   value is f(wi -> wo). The library's own convention, and the default.
+/// - radiance: wi points to the viewer (the direction a camera path already knows), wo to the light; the value is
+///   f(wo -> wi), the BSDF with its arguments exchanged: the BTDF times (eta_wi / eta_wo)^2 by generalized
+///   reciprocity (and the masking-only BRDF, the one non-symmetric form, evaluated the other way round).
+/// The sampling density of wo given wi is the same in both modes; only the value (and so the weight) changes.
+enum class TransportMode { importance, radiance };
+
 /// Result of RoughDielectric::sample. value = f(wi, wo) (no cosine) and pdf its solid-angle density, so the
 /// Monte Carlo weight is value |wo.z| / pdf. A failed sample (direction into the wrong hemisphere, wi on the
 /// horizon) has pdf = 0 and value = 0 and must be discarded. A delta sample (index-matched or smooth interface)
@@ -95,8 +105,8 @@ namespace stratum {
 /// - smooth (RoughDielectric::smooth()): mirror direction with pdf = F, or Snell direction with pdf = 1 - F
 ///   (F = fresnel_dielectric(|wi.z|, eta_t / eta_i); under total internal reflection the mirror, pdf = 1).
 /// The weight is a power (flux) ratio, as for the rough lobes, whose weight G2 / G1(wi) tends to 1 as
-/// sigma -> 0: sample() estimates int f(wi, wo) |wo.z| dwo over wo. A camera path tracer that passes the
-/// viewer's direction as wi (reciprocity) must, for transmission (rough or smooth), multiply the weight by
+/// sigma -> 0: sample() estimates int f(wi, wo) |wo.z| dwo over wo. A camera path tracer, which passes the
+/// viewer's direction as wi, asks for TransportMode::radiance: a transmission's weight then carries
 /// (n_viewer / n_light)^2 (generalized reciprocity btdf(wi, wo) / eta_o^2 = btdf(wo, wi) / eta_i^2), the
 /// radiance factor of SmoothDielectric::radiance_transmittance.
 template <class Real = double>
@@ -261,8 +271,10 @@ public:
         return detail::saturate_to<Real>(times_g2_over_cosines(factor, wi.z, -wo.z, true));
     }
 
-    /// brdf or btdf, whichever the hemispheres of wi and wo call for.
-    STRATUM_HOST_DEVICE Real eval(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+    /// brdf or btdf, whichever the hemispheres of wi and wo call for; in TransportMode::radiance with the
+    /// arguments exchanged (see TransportMode).
+    STRATUM_HOST_DEVICE Real eval(Vec3<Real> wi, Vec3<Real> wo, TransportMode mode = TransportMode::importance) const noexcept {
+        if (mode == TransportMode::radiance) return eval(wo, wi);
         return wi.z * wo.z > 0 ? brdf(wi, wo) : btdf(wi, wo);
     }
 
@@ -288,7 +300,25 @@ public:
     /// BsdfSample for the meaning of the result; value and pdf are those of eval and pdf at (wi, wo).
     /// Smooth interface (smooth()): the mirror direction if u_lobe < F(|wi.z|) (always under total internal
     /// reflection), else the Snell direction, as a delta sample (u1, u2 unused).
-    STRATUM_HOST_DEVICE BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2) const noexcept {
+    /// In TransportMode::radiance wi is the viewer's direction and the value is eval(wi, wo, radiance) (see
+    /// TransportMode): a refracted sample's weight is then (eta_wi / eta_wo)^2 times the importance weight.
+    STRATUM_HOST_DEVICE BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2,
+                                                TransportMode mode = TransportMode::importance) const noexcept {
+        BsdfSample<Real> out = sample_importance(wi, u_lobe, u1, u2);
+        if (mode == TransportMode::radiance && out.valid()) {
+            if (out.delta) {
+                // The delta's coefficient scales as the BTDF: (eta_wi / eta_wo)^2 for a refraction.
+                const Real eta_wi = wi.z > 0 ? eta_above_ : eta_below_, eta_wo = out.wo.z > 0 ? eta_above_ : eta_below_;
+                if (!out.reflected) out.value *= (eta_wi / eta_wo) * (eta_wi / eta_wo);
+            } else {
+                out.value = eval(wi, out.wo, mode);
+            }
+        }
+        return out;
+    }
+
+private:
+    STRATUM_HOST_DEVICE BsdfSample<Real> sample_importance(Vec3<Real> wi, Real u_lobe, Real u1, Real u2) const noexcept {
         BsdfSample<Real> out;
         // The horizon, and subnormal cosines: a delta sample's value 1 / |wo.z| would overflow (found by
         // fuzz_pointwise at wi.z = 2e-315); such directions carry no energy.
@@ -333,6 +363,7 @@ public:
         return out;
     }
 
+public:
     /// Solid-angle density of sample(wi, ...) at wo: visible-normal density times the selection
     /// probability (F or 1 - F) times the Jacobian dh/dwo (1 / (4 (wo.h)) for reflection,
     /// eta_o^2 |wo.h| / (eta_i (wi.h) + eta_o (wo.h))^2 for refraction). 0 for index matching and smooth (deltas).
