@@ -97,6 +97,10 @@ struct LayerRequest {
     /// evaluation there skips the top interface's coefficients, its reflectance integral and the per-mode solve.
     /// Other incidences still work (computed on the fly).
     std::vector<Real> incidence;
+    /// Optical depths in [0, tau], measured from the top of a one-slab layer (true, not delta-M scaled), at which
+    /// depth_profile() will give the fluence rate and the net flux (their fields are prepared here: two slab
+    /// solves of mode 0 per depth).
+    std::vector<Real> depths;
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
     int max_modes = 0;
     /// 0: everything exact to the discretization. > 0: (a) modes are solved in order and the loop stops
@@ -425,6 +429,11 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
     for (std::size_t j = 0; j < request.incidence.size(); ++j)
         require_closed(("request.incidence[" + std::to_string(j) + "]").c_str(), request.incidence[j],
                        std::nextafter(Real(0), Real(1)), Real(1));
+    if (!request.depths.empty() && slabs.size() != 1)
+        fail_invalid_argument("stratum: request.depths needs a layer of one slab, got " + std::to_string(slabs.size()));
+    for (std::size_t j = 0; j < request.depths.size(); ++j)
+        require_closed(("request.depths[" + std::to_string(j) + "]").c_str(), request.depths[j], Real(0),
+                       slabs[0].optical_thickness());
 }
 
 /// The Fourier modes to solve: LayerOptions::modes (0: 2M, as many as 2M Legendre moments support) capped by
@@ -702,6 +711,17 @@ public:
     }
     Real ambient(Vec3<Real> wo) const { Workspace ws; return ambient(wo, ws); }
 
+    /// Inside the slab at a requested depth (LayerRequest::depths), for a beam of unit irradiance arriving with
+    /// cosine mu_i in (0, 1]: the fluence rate phi = int L dw over all directions (4 pi times the mean radiance;
+    /// for a beam alone, its flux over its cosine) and the net flux downwards, both per unit incident flux.
+    /// Conservation: where nothing is absorbed the net flux is the same at every depth, and d(net flux)/dtau =
+    /// -(1 - albedo) phi. Between specular faces the beam (with delta-M's forward peak) is exact at the true angle,
+    /// as in the fluxes; elsewhere it is part of the discrete field. Empty for mu_i outside (0, 1].
+    struct DepthPoint {
+        Real depth, fluence, net_flux;
+    };
+    std::vector<DepthPoint> depth_profile(Real mu_i) const;
+
 private:
     // The solver behind solve_stack and solve_layer, the public entry points.
     static LayeredSurface solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
@@ -724,6 +744,8 @@ private:
     void add_field_operators(int k, const detail::StackMode<Real>& below);
     Real coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
     void solve_ambient();
+    void solve_depths(const detail::PreparedStack<Real>& stack, const Slab<Real>& slab, const LayerOptions& options,
+                      const std::vector<Real>& depths);
     void separate_direct_beam(Real scaled_tau, Real true_tau);
     void precompute_incidences();
 
@@ -1079,6 +1101,13 @@ private:
     // PreparedBoundary when solved from one.
     std::shared_ptr<const detail::EntryTransmittance<Real>> top_entry_, bottom_entry_;
     std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
+    // Per requested depth: its optical depth (true and as solved) and the mode-0 operators from the coefficients
+    // entering below the top (c) to the down- and up-going radiance there.
+    struct DepthOperators {
+        Real depth, scaled_depth;
+        detail::Matrix<Real> down, up;
+    };
+    std::vector<DepthOperators> depth_ops_;
 };
 
 template <class Real>
@@ -1131,6 +1160,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.exit_bottom_ = prepared.bottom_exit.empty() ? s.bottom_face().transmittance_at_ordinates() : prepared.bottom_exit;
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     if (includes(request.outputs, LayerOutput::ambient)) s.solve_ambient();  // 5.
+    if (!request.depths.empty()) s.solve_depths(stack, slabs[0], options, request.depths);
     if (detail::beam_stays_on_its_ordinate(top, interior, bottom)) {  // 6.
         Real scaled_tau = 0, true_tau = 0;
         for (std::size_t i = 0; i < slabs.size(); ++i) {
@@ -1224,6 +1254,83 @@ void LayeredSurface<Real>::solve_ambient() {
     ambient_field_.assign(m, Real(0));
     for (std::size_t n = 0; n < m; ++n)
         for (std::size_t i = 0; i < m; ++i) ambient_field_[n] += qb_[0](n, i) * c[i];
+}
+
+// Step 5b: the fields at the requested depths t (mode 0). With the slab cut at t into A (above) and B (below, with
+// the bottom face: reflection S_B), and a0 = (I - R_21 S)^{-1} mapping the coefficients c entering below the top to
+// the down-going field there, the down- and up-going fields at t are
+//     D = (I - R_A S_B)^{-1} T_A a0 c,   U = S_B D
+// (A's reflection of up-going light back down is R_A: a bare slab is the same seen from either side).
+template <class Real>
+void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack, const Slab<Real>& slab,
+                                        const LayerOptions& options, const std::vector<Real>& depths) {
+    using detail::Matrix;
+    const std::size_t m = q_.size();
+    const Matrix<Real> r21 = detail::mode_matrix(top_ops_->R21(), 0);
+    const detail::StackMode<Real> whole = detail::stack_mode(stack, *bottom_ops_, q_, 0);
+    Matrix<Real> a0 = Matrix<Real>::identity(m);
+    detail::lu_solve(detail::lu_factor(detail::one_minus_product(r21, detail::as_matrix(m, whole.lower.reflection_down))), a0);
+    const ComponentOperators<Real> bottom = detail::interface_component(*bottom_ops_, 0);
+    const Real tau = slab.optical_thickness();
+    for (const Real t : depths) {
+        const detail::SlabModes<Real> above = detail::prepare_slab(slab, q_, 1, options.delta_m, t);
+        const detail::SlabModes<Real> below = detail::prepare_slab(slab, q_, 1, options.delta_m, tau - t);
+        const ComponentOperators<Real> a = detail::slab_mode(above, q_, 0);
+        const ComponentOperators<Real> b = add_components(detail::slab_mode(below, q_, 0), bottom);
+        const Matrix<Real> s_b = detail::as_matrix(m, b.reflection_down);
+        Matrix<Real> down = detail::multiply(detail::as_matrix(m, a.transmission_down), a0);
+        detail::lu_solve(detail::lu_factor(detail::one_minus_product(detail::as_matrix(m, a.reflection_up), s_b)), down);
+        Matrix<Real> up = detail::multiply(s_b, down);
+        depth_ops_.push_back({t, above.slab.optical_thickness(), std::move(down), std::move(up)});
+    }
+}
+
+template <class Real>
+std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::depth_profile(Real mu_i) const {
+    std::vector<DepthPoint> out;
+    if (!(mu_i > 0 && mu_i <= 1) || depth_ops_.empty()) return out;
+    Workspace ws;
+    const Real scale = scattering_scale(mu_i, ws);
+    entry(mu_i, ws);  // ws.c: mode 0 first
+    const std::size_t m = q_.size();
+    const Real two_pi = 2 * detail::pi_v<Real>;
+    // Between specular faces the solve's field holds the beam spread over the ordinates: take that out (its terms
+    // are diagonal, as in separate_direct_beam) and put the beam back exactly at the true angle mu_t.
+    const Real mu_t = direct_separated_ ? top_face().internal_cosine(mu_i) : Real(0);
+    for (const DepthOperators& d : depth_ops_) {
+        Real fluence = 0, net = 0;
+        for (std::size_t n = 0; n < m; ++n) {
+            Real down = 0, up = 0;
+            for (std::size_t i = 0; i < m; ++i) {
+                down += d.down(n, i) * ws.c[i];
+                up += d.up(n, i) * ws.c[i];
+            }
+            if (direct_separated_) {
+                const DirectBeam beam = direct_beam(q_.nodes[n], direct_tau_);
+                if (!beam.trapped()) {
+                    down -= std::exp(-d.scaled_depth / q_.nodes[n]) * beam.bounces() * ws.c[n];
+                    up -= beam.r23 * std::exp(-(2 * direct_tau_ - d.scaled_depth) / q_.nodes[n]) * beam.bounces() * ws.c[n];
+                }
+                down *= scale;
+                up *= scale;
+            }
+            fluence += two_pi * q_.weights[n] * (down + up);
+            net += two_pi * q_.weights[n] * q_.nodes[n] * (down - up);
+        }
+        if (direct_separated_ && mu_t > 0) {
+            const DirectBeam beam = direct_beam(mu_t, direct_tau_);
+            if (!beam.trapped()) {
+                const Real into = top_.smooth_interface().transmittance(mu_i) * beam.bounces();
+                const Real going_down = into * std::exp(-d.scaled_depth / mu_t);
+                const Real going_up = std::isinf(direct_tau_) ? Real(0)
+                                                              : into * beam.r23 * std::exp(-(2 * direct_tau_ - d.scaled_depth) / mu_t);
+                fluence += (going_down + going_up) / mu_t;
+                net += going_down - going_up;
+            }
+        }
+        out.push_back({d.depth, fluence, net});
+    }
+    return out;
 }
 
 // Step 6: between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its

@@ -1,0 +1,132 @@
+// Fields inside the layer (LayerRequest::depths, LayeredSurface::depth_profile): the fluence rate and the net
+// flux at optical depths in the slab. Checked against Beer's law for a purely absorbing slab (with the bounces
+// between Fresnel faces written out), against conservation (a non-absorbing layer carries the same net flux at
+// every depth; an absorbing one loses (1 - albedo) int phi dtau between two depths), and against the layer's own
+// fluxes at the two faces.
+#include <doctest/doctest.h>
+
+#include <stratum/layer.hpp>
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "test_util.hpp"
+
+using stratum::Boundary;
+using stratum::LayerOptions;
+using stratum::LayerRequest;
+using stratum::RoughDielectric;
+using stratum::Slab;
+using stratum::SmoothDielectric;
+using stratum::solve_layer;
+using stratum::solve_stack;
+using stratum_test::fresnel_closed_form;
+
+namespace {
+
+LayerOptions ordinates(int m) {
+    LayerOptions o;
+    o.ordinates = m;
+    return o;
+}
+
+LayerRequest<double> at_depths(std::vector<double> depths) {
+    LayerRequest<double> r;
+    r.depths = std::move(depths);
+    return r;
+}
+
+}  // namespace
+
+TEST_CASE("a purely absorbing slab: the beam alone, by Beer's law and the bounces between Fresnel faces") {
+    // Index matched: phi = e^{-t / mu} / mu and F = e^{-t / mu}.
+    const Boundary<double> open = Boundary<double>::index_matched(1.0);
+    const auto layer = solve_layer(Slab<double>(0.0, 0.7, 2.0), open, open, ordinates(8), at_depths({0.0, 0.3, 1.0, 2.0}));
+    for (const double mu : {1.0, 0.6, 0.1})
+        for (const auto& p : layer.depth_profile(mu)) {
+            INFO("mu " << mu << " depth " << p.depth);
+            CHECK(stratum_test::close_rel(p.fluence, std::exp(-p.depth / mu) / mu, 1e-14));
+            CHECK(stratum_test::close_rel(p.net_flux, std::exp(-p.depth / mu), 1e-14));
+        }
+    // Air | n = 1.5 | air: inside at mu_t, down e^{-t / mu_t} and up r e^{-(2 tau - t) / mu_t}, both times
+    // (1 - F(mu)) / (1 - r^2 e^{-2 tau / mu_t}), r = F(mu_t, 1 / 1.5).
+    const double n = 1.5, tau = 1.0;
+    const auto fresnel = solve_layer(Slab<double>(0.0, 0.0, tau), SmoothDielectric<double>(1.0, n),
+                                     SmoothDielectric<double>(n, 1.0), ordinates(8), at_depths({0.0, 0.4, 1.0}));
+    for (const double mu : {1.0, 0.5}) {
+        const double mu_t = std::sqrt(1 - (1 - mu * mu) / (n * n)), r = fresnel_closed_form(mu_t, 1 / n);
+        const double into = (1 - fresnel_closed_form(mu, n)) / (1 - r * r * std::exp(-2 * tau / mu_t));
+        for (const auto& p : fresnel.depth_profile(mu)) {
+            const double down = into * std::exp(-p.depth / mu_t), up = into * r * std::exp(-(2 * tau - p.depth) / mu_t);
+            INFO("mu " << mu << " depth " << p.depth);
+            CHECK(stratum_test::close_rel(p.fluence, (down + up) / mu_t, 1e-13));
+            CHECK(stratum_test::close_rel(p.net_flux, down - up, 1e-13));
+        }
+    }
+}
+
+TEST_CASE("rough faces: the net flux is conserved through a non-absorbing slab and decreases by the absorption") {
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const double tau = 2.0;
+    // Depths at the 48 Gauss-Legendre nodes of [0, tau] (to integrate phi), and both faces.
+    const stratum::Quadrature<double> g = stratum::gauss_legendre_half<double>(48);
+    std::vector<double> depths = {0.0, tau};
+    for (const double x : g.nodes) depths.push_back(tau * x);
+    for (const double albedo : {1.0, 0.9}) {
+        const auto layer = solve_layer(Slab<double>(albedo, 0.7, tau), top, bottom, ordinates(12), at_depths(depths));
+        for (const double mu : {1.0, 0.4}) {
+            const auto p = layer.depth_profile(mu);
+            REQUIRE(p.size() == depths.size());
+            double absorbed = 0;
+            for (std::size_t j = 2; j < p.size(); ++j) absorbed += tau * g.weights[j - 2] * (1 - albedo) * p[j].fluence;
+            INFO("albedo " << albedo << " mu " << mu);
+            // Between the faces: F(0) - F(tau) = (1 - albedo) int phi dtau (48-point Gauss: phi has boundary layers
+            // e^{-t / mu_m} from the grazing ordinates at both faces; 12 points left 1.5e-6).
+            CHECK(std::fabs(p[0].net_flux - p[1].net_flux - absorbed) < 1e-8);
+            for (const auto& x : p) {
+                CHECK(x.fluence > 0);
+                if (albedo == 1.0) CHECK(std::fabs(x.net_flux - p[0].net_flux) < 1e-12);
+            }
+        }
+    }
+}
+
+TEST_CASE("specular faces: the net flux at the faces is the layer's, and conserved inside to the beam-spread error") {
+    // Air | 1.4 | air, albedo 1: F(0) = 1 - R and F(tau) = T exactly (the faces lose nothing). Inside, the
+    // scattered field starts from the beam spread over the ordinates (README, known limitations), so the net flux
+    // is constant only to that approximation: measured 5.6e-5 at M = 16, mu0 = 0.6.
+    const auto layer = solve_layer(Slab<double>(1.0, 0.7, 2.0), SmoothDielectric<double>(1.0, 1.4),
+                                   SmoothDielectric<double>(1.4, 1.0), ordinates(16),
+                                   at_depths({0.0, 0.25, 0.5, 1.0, 1.5, 2.0}));
+    for (const double mu : {1.0, 0.6}) {
+        const auto p = layer.depth_profile(mu);
+        CHECK(std::fabs(p.front().net_flux - (1 - layer.reflectance(mu).total())) < 1e-13);
+        CHECK(std::fabs(p.back().net_flux - layer.transmittance(mu)) < 1e-13);
+        for (const auto& x : p) CHECK(std::fabs(x.net_flux - layer.transmittance(mu)) < 1e-4);
+    }
+}
+
+TEST_CASE("depths are validated; outside (0, 1] the profile is empty") {
+    const Boundary<double> open = Boundary<double>::index_matched(1.0);
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    CHECK_THROWS_WITH_AS(solve_layer(slab, open, open, ordinates(4), at_depths({0.5, 1.5})),
+                         doctest::Contains("request.depths[1]"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(solve_layer(slab, open, open, ordinates(4), at_depths({-0.1})), doctest::Contains("request.depths[0]"),
+                         std::invalid_argument);
+    CHECK_THROWS_WITH_AS(solve_stack<double>(open, {slab, slab}, {open}, open, ordinates(4), at_depths({0.5})),
+                         doctest::Contains("one slab"), std::invalid_argument);
+    const auto layer = solve_layer(slab, open, open, ordinates(4), at_depths({0.5}));
+    CHECK(layer.depth_profile(0.0).empty());
+    CHECK(layer.depth_profile(1.5).empty());
+    CHECK(layer.depth_profile(std::nan("")).empty());
+    CHECK(solve_layer(slab, open, open, ordinates(4)).depth_profile(0.5).empty());  // no depths requested
+    // A semi-infinite slab accepts any finite depth.
+    const auto deep = solve_layer(Slab<double>(0.9, 0.5, std::numeric_limits<double>::infinity()), open, open, ordinates(4),
+                                  at_depths({0.0, 1e3}));
+    const auto p = deep.depth_profile(0.5);
+    REQUIRE(p.size() == 2);
+    CHECK(std::fabs(p[0].net_flux - (1 - deep.reflectance(0.5).total())) < 1e-13);
+    CHECK(p[1].fluence >= 0);
+    CHECK(p[1].fluence < 1e-20);
+}
