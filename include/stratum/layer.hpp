@@ -711,6 +711,22 @@ public:
     }
     Real ambient(Vec3<Real> wo) const { Workspace ws; return ambient(wo, ws); }
 
+    /// The azimuthal Fourier series behind subsurface_brdf (which = LayerOutput::subsurface_reflection) or btdf
+    /// (which = LayerOutput::transmission), cosine-weighted, for every pair of an incidence cosine mu_i[a] and an
+    /// exit cosine mu_o[b] (|wo.z|, for the BTDF too), all in [0, 1]:
+    ///   f(wi, wo) |wo.z| = sum_{k < modes()} a_k cos(k dphi),   a_k = result[(a mu_o.size() + b) modes() + k],
+    /// with dphi the azimuth between -wi and wo (0: on in the direction of travel) as in those functions, which
+    /// sum this series (and return 0 where it is negative). A cosine 0 gives 0; an output that was not requested
+    /// gives zeros. The cost is one internal field per mu_i and one set of exit weights per mu_o, then
+    /// M modes() multiply-adds per pair (tabulated_bsdf.hpp builds its table from this).
+    /// Throws std::invalid_argument for another `which` or a cosine outside [0, 1] (NaN included).
+    std::vector<Real> fourier_coefficients(LayerOutput which, const std::vector<Real>& mu_i,
+                                           const std::vector<Real>& mu_o) const;
+
+    /// The faces as solved: light arrives through top() from above and leaves below through bottom().
+    const Boundary<Real>& top() const noexcept { return top_; }
+    const Boundary<Real>& bottom() const noexcept { return bottom_; }
+
     /// Inside the slab at a requested depth (LayerRequest::depths), for a beam of unit irradiance arriving with
     /// cosine mu_i in (0, 1]: the fluence rate phi = int L dw over all directions (4 pi times the mean radiance;
     /// for a beam alone, its flux over its cosine) and the net flux downwards, both per unit incident flux.
@@ -1454,6 +1470,45 @@ std::vector<LayeredSurface<Real>> solve_spectral(const std::vector<Slab<Real>>& 
     layers.reserve(slabs.size());
     for (const Slab<Real>& slab : slabs) layers.push_back(solve_layer(slab, prepared_top, prepared_bottom, request));
     return layers;
+}
+
+template <class Real>
+std::vector<Real> LayeredSurface<Real>::fourier_coefficients(LayerOutput which, const std::vector<Real>& mu_i,
+                                                             const std::vector<Real>& mu_o) const {
+    const bool transmitted = which == LayerOutput::transmission;
+    if (!transmitted && which != LayerOutput::subsurface_reflection)
+        detail::fail_invalid_argument("stratum: fourier_coefficients: which must be LayerOutput::subsurface_reflection or "
+                                    "LayerOutput::transmission");
+    for (const std::vector<Real>* v : {&mu_i, &mu_o})
+        for (const Real mu : *v) detail::require_closed("fourier_coefficients: cosine", mu, Real(0), Real(1));
+    const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_), no = mu_o.size();
+    std::vector<Real> out(mu_i.size() * no * kk, Real(0));
+    const bool requested = transmitted ? includes(outputs_, LayerOutput::transmission) && !bottom_.lambertian()
+                                       : includes(outputs_, LayerOutput::subsurface_reflection);
+    if (!requested || kk == 0) return out;
+    Workspace ws;
+    const Face face = transmitted ? bottom_face() : top_face();
+    std::vector<Real> exits(no * kk * m, Real(0));  // exit weights (ws.out) per mu_o
+    for (std::size_t b = 0; b < no; ++b) {
+        if (!(mu_o[b] > 0)) continue;
+        exit_weights(mu_o[b], face, ws);
+        std::copy(ws.out.begin(), ws.out.end(), exits.begin() + static_cast<std::ptrdiff_t>(b * kk * m));
+    }
+    for (std::size_t a = 0; a < mu_i.size(); ++a) {
+        if (!(mu_i[a] > 0)) continue;
+        const Real scale = scattering_scale(mu_i[a], ws);
+        const Real* fld = field(mu_i[a], transmitted, ws);
+        for (std::size_t b = 0; b < no; ++b) {
+            const Real* w = exits.data() + b * kk * m;
+            Real* a_k = out.data() + (a * no + b) * kk;
+            for (std::size_t k = 0; k < kk; ++k) {
+                Real s = 0;
+                for (std::size_t i = 0; i < m; ++i) s += w[k * m + i] * fld[k * m + i];
+                a_k[k] = scale * mu_o[b] * s;
+            }
+        }
+    }
+    return out;
 }
 
 }  // namespace stratum

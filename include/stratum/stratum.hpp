@@ -19,6 +19,7 @@
 #include "interface_operators.hpp"
 #include "layer.hpp"
 #include "slab.hpp"
+#include "tabulated_bsdf.hpp"
 
 // Diffusion
 #include "dipole.hpp"

@@ -1,0 +1,715 @@
+// stratum/tabulated_bsdf.hpp -- a solved layer as a renderer's BSDF: the subsurface reflection and the transmission
+// tabulated once as azimuthal Fourier series on a grid of cosines, evaluated and importance-sampled in a shader's
+// time; the top's own reflection kept analytic (RoughDielectric), the specular beams as deltas.
+//
+// Frame and conventions as RoughDielectric (vec3.hpp, interface.hpp): wi towards the light, wo towards the
+// viewer, both pointing away from the surface, z the normal; values per steradian without the cosine; BsdfSample
+// as there. docs/physics.md section 9 gives the representation, the interpolation and the sampling.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "detail/math.hpp"
+#include "detail/validate.hpp"
+#include "interface.hpp"
+#include "layer.hpp"
+#include "vec3.hpp"
+
+namespace stratum {
+
+namespace detail {
+
+// Cubic Hermite (Catmull-Rom) interpolation on the uniform grid t_j = j / (n - 1) (n >= 4) of the values f_j of a
+// function of t: on [t_j, t_j+1], with s = (n - 1)(u - t_j),
+//   p(s) = h00(s) f_j + h01(s) f_j+1 + h10(s) d_j + h11(s) d_j+1,   d_j = (f_j+1 - f_j-1) / 2 (slope times step),
+// one-sided at t = 0 (d_0 = f_1 - f_0). At t = 1 (the normal) the end rule follows the parity of the azimuthal mode
+// k, since a_k(-theta) = (-1)^k a_k(theta): an even mode has slope 0 there; an odd one vanishes there, and its
+// mirror value -f_n-2 gives d_n-1 = (-f_n-2 - f_n-2) / 2 = f_n-1 - f_n-2, the one-sided difference.
+// The value is linear in the data: sum_a w[a] f[first + a] over four consecutive nodes, with the weights `even`
+// for even modes and `odd` for odd ones (they differ only in the last interval: `split`).
+template <class Real>
+struct SplineWeights {
+    int first = 0;
+    bool split = false;
+    Real even[4] = {0, 0, 0, 0}, odd[4] = {0, 0, 0, 0};
+};
+
+template <class Real>
+SplineWeights<Real> spline_weights(int n, Real u) noexcept {
+    const Real x = std::fmin(std::fmax(u, Real(0)), Real(1)) * Real(n - 1);
+    const int j = std::min(static_cast<int>(x), n - 2);
+    const Real s = std::fmin(x - Real(j), Real(1)), s2 = s * s, s3 = s2 * s;
+    const Real h00 = 2 * s3 - 3 * s2 + 1, h01 = 3 * s2 - 2 * s3, h10 = s3 - 2 * s2 + s, h11 = s3 - s2;
+    SplineWeights<Real> w;
+    w.first = std::min(std::max(j - 1, 0), n - 4);
+    Real* e = w.even;
+    const int o = j - w.first;  // node j's place
+    e[o] += h00;
+    e[o + 1] += h01;
+    if (j == 0) {
+        e[o + 1] += h10;
+        e[o] -= h10;
+    } else {
+        e[o + 1] += h10 / 2;
+        e[o - 1] -= h10 / 2;
+    }
+    if (j + 1 < n - 1) {
+        e[o + 2] += h11 / 2;
+        e[o] -= h11 / 2;
+    }
+    for (int a = 0; a < 4; ++a) w.odd[a] = e[a];
+    if (j + 1 == n - 1) {  // the last interval: d_n-1 = 0 for even modes, f_n-1 - f_n-2 for odd ones
+        w.split = true;
+        w.odd[o + 1] += h11;
+        w.odd[o] -= h11;
+    }
+    return w;
+}
+
+// One interval [t_j, t_j+1] of the spline through f (a function giving the value at a node; `even`: the end rule
+// at t = 1), and int_{t_j}^{t_j + s h} p = h (f_j (s - s^3 + s^4/2) + f_j+1 (s^3 - s^4/2) + d_j (s^4/4 - 2s^3/3 + s^2/2)
+// + d_j+1 (s^4/4 - s^3/3)), whose derivative in s is h p(s).
+template <class Real>
+struct HermiteSegment {
+    Real h, f0, f1, d0, d1;
+    Real value(Real s) const noexcept {
+        const Real s2 = s * s, s3 = s2 * s;
+        return (2 * s3 - 3 * s2 + 1) * f0 + (3 * s2 - 2 * s3) * f1 + (s3 - 2 * s2 + s) * d0 + (s3 - s2) * d1;
+    }
+    Real integral(Real s) const noexcept {
+        const Real s2 = s * s, s3 = s2 * s, s4 = s3 * s;
+        return h * (f0 * (s - s3 + s4 / 2) + f1 * (s3 - s4 / 2) + d0 * (s4 / 4 - 2 * s3 / 3 + s2 / 2) +
+                    d1 * (s4 / 4 - s3 / 3));
+    }
+};
+
+template <class Real, class F>
+HermiteSegment<Real> hermite_segment(int n, int j, bool even, F f) noexcept {
+    HermiteSegment<Real> g;
+    g.h = Real(1) / Real(n - 1);
+    g.f0 = f(j);
+    g.f1 = f(j + 1);
+    g.d0 = j == 0 ? g.f1 - g.f0 : (g.f1 - f(j - 1)) / 2;
+    g.d1 = j + 2 < n ? (f(j + 2) - g.f0) / 2 : (even ? Real(0) : g.f1 - g.f0);
+    return g;
+}
+
+// The t in [0, 1] where the segment's integral reaches r (0 <= r <= its integral up to rounding): Newton's method
+// kept inside a bracket that bisection shrinks; `scale` sets the residual counted as rounding.
+template <class Real>
+Real invert_segment(const HermiteSegment<Real>& seg, Real r, Real scale) noexcept {
+    const Real whole = seg.integral(Real(1));
+    Real lo = 0, hi = 1, x = whole > 0 ? std::fmin(std::fmax(r / whole, Real(0)), Real(1)) : Real(0.5);
+    for (int it = 0; it < 60; ++it) {
+        const Real res = seg.integral(x) - r;
+        if (std::fabs(res) <= 4 * std::numeric_limits<Real>::epsilon() * scale) break;
+        if (res > 0) hi = x; else lo = x;
+        const Real d = seg.h * seg.value(x);
+        const Real next = d > 0 ? x - res / d : Real(-1);
+        x = (next > lo && next < hi) ? next : (lo + hi) / 2;
+        if (hi - lo <= 4 * std::numeric_limits<Real>::epsilon()) break;
+    }
+    return x;
+}
+
+// Sum_j c_{j stride} T_j(x) over j stride < order, by Clenshaw's recurrence: with x = cos(phi) and stride 1 the
+// series sum_k c_k cos(k phi); with x = cos(2 phi) and stride 2 its even modes.
+template <class Real>
+Real cosine_series(const Real* c, int order, Real x, int stride = 1) noexcept {
+    if (order <= 0) return Real(0);
+    Real b1 = 0, b2 = 0;
+    for (int k = (order - 1) / stride * stride; k >= stride; k -= stride) {
+        const Real b0 = c[k] + 2 * x * b1 - b2;
+        b2 = b1;
+        b1 = b0;
+    }
+    return c[0] + x * b1 - b2;
+}
+
+// Samples phi in [0, pi] with density proportional to g(phi) = sum_k c_k cos(k phi) (c_0 > 0) by inverting
+// G(phi) = c_0 phi + sum_{k >= 1} c_k sin(k phi) / k = u c_0 pi: Newton's method kept inside a bracket that
+// bisection shrinks. Where the truncated series dips below 0 the CDF is not monotone; the root found is still in
+// [0, pi] and the caller's pdf (the clamped g) tells the truth about it.
+template <class Real>
+Real sample_cosine_series(const Real* c, int order, Real u) noexcept {
+    const Real pi = pi_v<Real>, target = u * c[0] * pi;
+    Real lo = 0, hi = pi, phi = u * pi;
+    for (int it = 0; it < 60; ++it) {
+        const Real cp = std::cos(phi), sp = std::sin(phi);
+        Real G = c[0] * phi, g = c[0];
+        Real s_prev = 0, s_k = sp, c_prev = 1, c_k = cp;  // sin(k phi), cos(k phi) by recurrence
+        for (int k = 1; k < order; ++k) {
+            G += c[k] * s_k / Real(k);
+            g += c[k] * c_k;
+            const Real s_next = 2 * cp * s_k - s_prev, c_next = 2 * cp * c_k - c_prev;
+            s_prev = s_k;
+            s_k = s_next;
+            c_prev = c_k;
+            c_k = c_next;
+        }
+        const Real r = G - target;
+        if (std::fabs(r) <= 4 * std::numeric_limits<Real>::epsilon() * c[0] * pi) break;
+        if (r > 0) hi = phi; else lo = phi;
+        const Real next = g > 0 ? phi - r / g : Real(-1);
+        phi = (next > lo && next < hi) ? next : (lo + hi) / 2;
+        if (hi - lo <= 4 * std::numeric_limits<Real>::epsilon() * pi) break;
+    }
+    return phi;
+}
+
+// The table's variable: t in [0, 1] with mu = sin^2(pi t / 2). Mode k of the coefficients behaves like
+// sin^k(theta) near the normal and like a power of mu near grazing: square roots in mu, smooth in t.
+template <class Real>
+Real cosine_parameter(Real mu) noexcept {
+    return Real(2) / pi_v<Real> * std::asin(std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))));
+}
+template <class Real>
+Real parameter_cosine(Real t) noexcept {
+    const Real s = std::sin(pi_v<Real> / 2 * t);
+    return std::fmin(s * s, Real(1));
+}
+// dmu/dt = (pi / 2) sin(pi t).
+template <class Real>
+Real parameter_jacobian(Real t) noexcept {
+    return pi_v<Real> / 2 * std::sin(pi_v<Real> * t);
+}
+
+// The grid of n nodes: t_j = j / (n - 1). That of 2n - 1 nodes holds these and the midpoints, where the error is
+// measured.
+template <class Real>
+std::vector<Real> grid_parameters(int n) {
+    std::vector<Real> t(static_cast<std::size_t>(n));
+    for (int j = 0; j < n; ++j) t[static_cast<std::size_t>(j)] = Real(j) / Real(n - 1);
+    return t;
+}
+
+// One tabulated lobe on the grid t[0..n-1] x t[0..n-1] (incidence, exit): the Fourier coefficients of f |mu_o| of
+// each pair, truncated to the order the pair needs (pair p = a n + b holds coeffs[offset[p] .. offset[p + 1])), and
+// per row a the running integral over the exit of m(t) = a_0(t_a, t) dmu/dt along the row's spline,
+// cdf[a n + b] = int_0^{t_b} m dt (so cdf[a n + n - 1] is the lobe's albedo over 2 pi at mu_a).
+template <class Real>
+struct FourierTable {
+    std::vector<std::uint32_t> offset;
+    std::vector<Real> coeffs, cdf;
+    int max_order = 0;
+    bool empty() const noexcept { return coeffs.empty(); }
+    const Real* pair(std::size_t p) const noexcept { return coeffs.data() + offset[p]; }
+    int order(std::size_t p) const noexcept { return static_cast<int>(offset[p + 1] - offset[p]); }
+    Real mean(std::size_t p) const noexcept { return offset[p + 1] > offset[p] ? coeffs[offset[p]] : Real(0); }
+};
+
+}  // namespace detail
+
+/// The whole layer (LayeredSurface::brdf and ::btdf, plus the specular beams they leave out) as a table that a
+/// renderer evaluates and samples in constant time, whatever the solver's settings were.
+///
+/// Representation (docs/physics.md section 9): the subsurface reflection and the transmission as
+/// f(wi, wo) |wo.z| = sum_k a_k(mu_i, mu_o) cos(k dphi) (dphi the azimuth between -wi and wo), the a_k tabulated at
+/// n x n pairs of cosines mu = sin^2(pi t / 2), t uniform in [0, 1], and interpolated by cubic Hermite (Catmull-Rom)
+/// splines in t_i and t_o; each pair keeps the modes it needs. The top's rough reflection r_12 is the
+/// RoughDielectric itself; a smooth top's mirror reflection, and between specular faces the unscattered beam and
+/// delta-M's forward peak (the layer's direct_* and forward_peak_*), are deltas.
+///
+/// Accuracy: the grid is refined (n = 9, 17, 33, 65, 129 at most) until, at the nodes of the next finer grid, the
+/// table's f |wo.z| differs from the layer's by at most `tolerance` times the largest azimuthal mean of f |wo.z|
+/// (over both lobes and all cosines), at every dphi (the bound sums the |a_k| differences); each pair's series is
+/// cut where the dropped |a_k| sum to a quarter of that. error() reports the value measured. Between the grazing
+/// node (mu = 0, where the layer is evaluated at a tenth of the next node's cosine) and the next, the table
+/// holds what the spline gives.
+///
+/// Sampling: a lobe by the albedos at mu_i (the surface's, the tabulated reflection's and transmission's, the
+/// deltas'); for a tabulated lobe, t_o by inverting the exact integral of the spline of a_0 dmu/dt, then dphi by
+/// inverting the CDF of the interpolated Fourier series (no rejection). The density is f |wo.z| / albedo up to the
+/// ratio of the spline of a_0 dmu/dt to dmu/dt times the spline of a_0 (1 within the table's error); pdf() gives it
+/// exactly, wherever the interpolated series is >= 0 (a truncated series that rings below 0 is clamped to 0).
+///
+/// Sides: built from one layer, the BSDF is one-sided (light from above, wi.z > 0; two_sided() is false, and
+/// wi.z < 0 gives 0 and invalid samples). Built from two, the second is the layer turned over (solved with its
+/// bottom face first and the indices swapped) and answers for light from below: all four combinations of sides.
+/// Evaluation is noexcept, allocation-free and const (thread-safe); degenerate directions give 0.
+template <class Real = double>
+class TabulatedBSDF {
+public:
+    /// Tabulates `layer` (solved with LayerOutput::subsurface_reflection and ::transmission for the tabulated
+    /// lobes, ::surface_reflection for the top's reflection; lobes that were not requested are 0).
+    /// tolerance in [1e-7, 0.5]; throws std::invalid_argument otherwise.
+    template <class LayerReal>
+    TabulatedBSDF(const LayeredSurface<LayerReal>& layer, Real tolerance) : tolerance_(check_tolerance(tolerance)) {
+        sides_[0] = tabulate(layer, tolerance);
+    }
+    /// Two-sided: `from_above` lit from above, `from_below` the same layer turned over.
+    template <class LayerReal>
+    TabulatedBSDF(const LayeredSurface<LayerReal>& from_above, const LayeredSurface<LayerReal>& from_below,
+                  Real tolerance)
+        : tolerance_(check_tolerance(tolerance)) {
+        sides_[0] = tabulate(from_above, tolerance);
+        sides_[1] = tabulate(from_below, tolerance);
+    }
+
+    bool two_sided() const noexcept { return sides_[1].has_value(); }
+    Real tolerance() const noexcept { return tolerance_; }
+    /// The largest error measured at construction, in the units of `tolerance` (the worse side).
+    Real error() const noexcept { return std::fmax(sides_[0]->error, sides_[1] ? sides_[1]->error : Real(0)); }
+    /// Grid nodes per cosine of the side lit from above.
+    int grid_size() const noexcept { return sides_[0]->n(); }
+    /// Bytes held by the tables (both sides).
+    std::size_t memory_bytes() const noexcept {
+        return sides_[0]->bytes() + (sides_[1] ? sides_[1]->bytes() : std::size_t(0));
+    }
+
+    /// f(wi, wo) (per steradian, no cosine): the layer's brdf or btdf, whichever the hemispheres call for. Deltas
+    /// are not evaluated (0), as in RoughDielectric. TransportMode::radiance exchanges the arguments.
+    Real eval(Vec3<Real> wi, Vec3<Real> wo, TransportMode mode = TransportMode::importance) const noexcept {
+        if (mode == TransportMode::radiance) std::swap(wi, wo);
+        const Side* s = side(wi, wo);
+        if (!s || !(wo.z != 0)) return Real(0);
+        const Real mu_o = std::fmin(std::fabs(wo.z), Real(1));
+        const Real a = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo).value;
+        const Real surface = (wo.z > 0 && s->surface) ? s->surface->brdf(wi, wo) : Real(0);
+        return surface + a / mu_o;
+    }
+
+    /// The solid-angle density of sample(wi, ...) at wo (the deltas excluded: 0 there, as in RoughDielectric).
+    /// The same in both transport modes.
+    Real pdf(Vec3<Real> wi, Vec3<Real> wo, TransportMode = TransportMode::importance) const noexcept {
+        const Side* s = side(wi, wo);
+        if (!s || !(wo.z != 0)) return Real(0);
+        const Albedos al = s->albedos(std::fmin(wi.z, Real(1)));
+        if (!(al.total > 0)) return Real(0);
+        const Real p = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo).density / al.total;
+        if (wo.z < 0 || !s->surface || !(al.surface > 0)) return p;
+        return p + al.surface / al.total * s->surface_pdf(wi, wo);
+    }
+
+    /// Samples wo from wi with three uniforms in [0, 1): the lobe by u_lobe, then (tabulated lobes) t_o by u1 and
+    /// dphi by u2 (its sign by u_lobe's place within the lobe's share), or (surface) a visible facet normal by u1
+    /// and u2. value and pdf as eval and pdf give them; a delta sample has delta = true, pdf = its selection
+    /// probability and value = its power fraction / |wo.z| (BsdfSample). A failed sample has pdf = 0.
+    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2,
+                            TransportMode mode = TransportMode::importance) const noexcept {
+        const bool below = wi.z < 0;
+        const Side* s = below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
+        if (!s || !finite(wi) || !(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return {};
+        Vec3<Real> w = wi;
+        if (below) w.z = -w.z;
+        const Albedos al = s->albedos(std::fmin(w.z, Real(1)));
+        if (!(al.total > 0)) return {};
+        const Real p[5] = {al.surface, al.reflection, al.transmission, al.mirror, al.straight};
+        int lobe = 0, last = 4;
+        while (!(p[last] > 0)) --last;  // some lobe has albedo > 0
+        Real u = u_lobe * al.total;
+        while (lobe < last && (u >= p[lobe] || !(p[lobe] > 0))) u -= p[lobe++];
+        u = std::fmin(std::fmax(u / p[lobe], Real(0)), Real(1));
+        BsdfSample<Real> out;
+        if (lobe >= 3) {  // a delta: the mirror direction, or the beam's Snell direction below
+            out.wo = lobe == 3 ? Vec3<Real>{-w.x, -w.y, w.z} : s->straight_through(w);
+            if (!(out.wo.z != 0)) return {};
+            out.delta = true;
+            out.reflected = lobe == 3;
+            out.pdf = p[lobe] / al.total;
+            out.value = p[lobe] / std::fabs(out.wo.z);
+            if (mode == TransportMode::radiance && !out.reflected) out.value *= s->radiance_factor();
+        } else {
+            out.wo = lobe == 0 ? s->sample_surface(w, u1, u2) : s->sample_lobe(lobe == 1, w, u, u1, u2);
+            if (!(out.wo.z != 0)) return {};
+            out.reflected = out.wo.z > 0;
+            Vec3<Real> wo = out.wo;
+            if (below) wo.z = -wo.z;
+            out.pdf = pdf(wi, wo);
+            if (!(out.pdf > 0)) return {};
+            out.value = eval(wi, wo, mode);
+        }
+        if (below) out.wo.z = -out.wo.z;
+        return out;
+    }
+
+    /// The albedo of the whole BSDF for light arriving at cosine mu (> 0: from above, < 0: from below), deltas
+    /// included (what a white furnace measures of sample()): {reflectance, transmittance}; {0, 0} where the side is
+    /// not tabulated.
+    struct Albedo {
+        Real reflectance, transmittance;
+    };
+    Albedo albedo(Real mu) const noexcept {
+        const Side* s = mu < 0 ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
+        if (!s || !(std::fabs(mu) > 0)) return {Real(0), Real(0)};
+        const Albedos a = s->albedos(std::fmin(std::fabs(mu), Real(1)));
+        return {a.surface + a.reflection + a.mirror, a.transmission + a.straight};
+    }
+
+private:
+    // Albedos of the five lobes at one incidence (the surface's interpolated, for choosing lobes only).
+    struct Albedos {
+        Real surface = 0, reflection = 0, transmission = 0, mirror = 0, straight = 0, total = 0;
+    };
+    // A tabulated lobe at (wi, wo): value = f |wo.z| (clamped to >= 0), density = value times the ratio of the
+    // sampled marginal to the interpolated mean (see the class comment) and times albedo / (2 pi): the lobe's share
+    // of the mixture density times the albedos' total.
+    struct LobeValue {
+        Real value = 0, density = 0;
+    };
+
+    struct Side {
+        std::vector<Real> t, jacobian;                 // grid t_j = j / (n - 1); dmu/dt there
+        detail::FourierTable<Real> reflection, transmission;
+        std::optional<RoughDielectric<Real>> surface;  // the top's rough reflection (analytic)
+        std::vector<Real> surface_albedo;              // its directional reflectance at the nodes (lobe choice)
+        std::optional<SmoothDielectric<Real>> mirror;  // a smooth top's Fresnel reflection
+        std::vector<Real> beam_reflected, beam_transmitted;  // deltas between specular faces, at the nodes
+        Real eta_above = 1, eta_below = 1;             // outside the top and below the bottom
+        Real error = 0;
+
+        int n() const noexcept { return static_cast<int>(t.size()); }
+        std::size_t bytes() const noexcept {
+            const std::size_t reals = t.size() + jacobian.size() + reflection.coeffs.size() + reflection.cdf.size() +
+                                      transmission.coeffs.size() + transmission.cdf.size() + surface_albedo.size() +
+                                      beam_reflected.size() + beam_transmitted.size();
+            return sizeof(Real) * reals + sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size());
+        }
+        detail::SplineWeights<Real> weights(Real mu) const noexcept {
+            return detail::spline_weights(n(), detail::cosine_parameter(mu));
+        }
+        std::size_t pair(const detail::SplineWeights<Real>& si, int a, const detail::SplineWeights<Real>& so, int b) const noexcept {
+            return static_cast<std::size_t>(si.first + a) * t.size() + static_cast<std::size_t>(so.first + b);
+        }
+        // The incidence-interpolated running integral of m at exit node b.
+        Real cdf(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, int b) const noexcept {
+            Real c = 0;
+            for (int a = 0; a < 4; ++a) c += si.even[a] * tab.cdf[static_cast<std::size_t>(si.first + a) * t.size() + static_cast<std::size_t>(b)];
+            return c;
+        }
+        // The incidence-interpolated m = a_0 dmu/dt at exit node b.
+        Real marginal(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, int b) const noexcept {
+            Real c = 0;
+            for (int a = 0; a < 4; ++a) c += si.even[a] * tab.mean(static_cast<std::size_t>(si.first + a) * t.size() + static_cast<std::size_t>(b));
+            return c * jacobian[static_cast<std::size_t>(b)];
+        }
+
+        LobeValue lobe(const detail::FourierTable<Real>& tab, Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+            if (tab.empty()) return {};
+            const detail::SplineWeights<Real> si = weights(std::fmin(wi.z, Real(1)));
+            const Real t_o = detail::cosine_parameter(std::fmin(std::fabs(wo.z), Real(1)));
+            const detail::SplineWeights<Real> so = detail::spline_weights(n(), t_o);
+            const Real x = cos_dphi(wi, wo), x2 = 2 * x * x - 1;
+            const bool split = si.split || so.split;
+            Real g = 0, mean = 0, m = 0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) {
+                    const Real w = si.even[a] * so.even[b];
+                    const std::size_t p = pair(si, a, so, b);
+                    const Real all = detail::cosine_series(tab.pair(p), tab.order(p), x);
+                    mean += w * tab.mean(p);
+                    if (!split) {
+                        g += w * all;
+                    } else {  // the even and odd modes with their own weights
+                        const Real even = detail::cosine_series(tab.pair(p), tab.order(p), x2, 2);
+                        g += w * even + si.odd[a] * so.odd[b] * (all - even);
+                    }
+                }
+            for (int b = 0; b < 4; ++b) m += so.odd[b] * marginal(tab, si, so.first + b);  // m is odd at t = 1
+            LobeValue v;
+            v.value = g > 0 ? g : Real(0);
+            // value x (m / (dmu/dt)) / mean: the sampled density over the mixture's (see the class comment); where
+            // dmu/dt vanishes (mu_o = 0 or 1, measure zero) the ratio is 1.
+            const Real jac = detail::parameter_jacobian(t_o);
+            const Real ratio = jac > std::numeric_limits<Real>::epsilon() ? m / (jac * mean) : Real(1);
+            v.density = mean > 0 && ratio > 0 ? v.value * ratio : Real(0);
+            return v;
+        }
+
+        Albedos albedos(Real mu_i) const noexcept {
+            Albedos al;
+            const detail::SplineWeights<Real> si = weights(mu_i);
+            auto interpolate = [&](const std::vector<Real>& v) {
+                if (v.empty()) return Real(0);
+                Real s = 0;
+                for (int a = 0; a < 4; ++a) s += si.even[a] * v[static_cast<std::size_t>(si.first + a)];
+                return s > 0 ? s : Real(0);
+            };
+            auto lobe_albedo = [&](const detail::FourierTable<Real>& tab) {
+                if (tab.empty()) return Real(0);
+                const Real c = cdf(tab, si, n() - 1);
+                return c > 0 ? 2 * detail::pi_v<Real> * c : Real(0);
+            };
+            al.surface = surface ? interpolate(surface_albedo) : Real(0);
+            al.reflection = lobe_albedo(reflection);
+            al.transmission = lobe_albedo(transmission);
+            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + interpolate(beam_reflected);
+            al.straight = interpolate(beam_transmitted);
+            al.total = al.surface + al.reflection + al.transmission + al.mirror + al.straight;
+            return al;
+        }
+
+        // Reflection only: a facet normal visible from wi and wo the mirror image of wi in it; density
+        // D_wi(h) / (4 wo.h), the RoughDielectric's reflection without its Fresnel choice.
+        Vec3<Real> sample_surface(Vec3<Real> wi, Real u1, Real u2) const noexcept {
+            const Vec3<Real> h = surface->distribution().sample_visible_normal(wi, u1, u2);
+            const Real c = dot(wi, h);
+            if (!(c > 0)) return {};
+            const Vec3<Real> wo = 2 * c * h - wi;
+            return wo.z > 0 ? wo : Vec3<Real>{};
+        }
+        Real surface_pdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+            const Vec3<Real> h = normalize(wi + wo);
+            const Real c = dot(wo, h);
+            if (!(c > 0)) return Real(0);
+            return surface->distribution().visible_normal_pdf(wi, h) / (4 * c);
+        }
+
+        // t_o by inverting the integral of the spline of m (u1), then dphi by inverting the interpolated series
+        // (u2), its sign by u_sign.
+        Vec3<Real> sample_lobe(bool reflected, Vec3<Real> wi, Real u_sign, Real u1, Real u2) const noexcept {
+            const detail::FourierTable<Real>& tab = reflected ? reflection : transmission;
+            const int nn = n();
+            const detail::SplineWeights<Real> si = weights(std::fmin(wi.z, Real(1)));
+            const Real total = cdf(tab, si, nn - 1);
+            if (!(total > 0)) return {};
+            const Real target = u1 * total;
+            int lo = 0, hi = nn - 1;  // the interval holding the target
+            while (hi - lo > 1) {
+                const int mid = (lo + hi) / 2;
+                if (cdf(tab, si, mid) <= target) lo = mid; else hi = mid;
+            }
+            const detail::HermiteSegment<Real> seg =
+                detail::hermite_segment<Real>(nn, lo, false, [&](int b) { return marginal(tab, si, b); });
+            const Real x = detail::invert_segment(seg, target - cdf(tab, si, lo), total);
+            const Real t_o = std::fmin(t[static_cast<std::size_t>(lo)] + x * seg.h, Real(1));
+            const Real mu_o = detail::parameter_cosine(t_o);
+            // The Fourier series at (mu_i, mu_o).
+            const detail::SplineWeights<Real> so = detail::spline_weights(nn, t_o);
+            Real c[kMaxOrder] = {};
+            int order = 0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) {
+                    const Real w[2] = {si.even[a] * so.even[b], si.odd[a] * so.odd[b]};
+                    const std::size_t p = pair(si, a, so, b);
+                    const Real* src = tab.pair(p);
+                    for (int k = 0; k < tab.order(p); ++k) c[k] += w[k & 1] * src[k];
+                    order = std::max(order, tab.order(p));
+                }
+            if (!(order > 0 && c[0] > 0)) return {};
+            const Real phi = detail::sample_cosine_series(c, order, u2) * (u_sign < Real(0.5) ? Real(1) : Real(-1));
+            // wo's azimuth is dphi from the propagation direction -wi (the x axis when wi is the normal).
+            const Real r = std::hypot(wi.x, wi.y);
+            const Real ex = r > 0 ? -wi.x / r : Real(1), ey = r > 0 ? -wi.y / r : Real(0);
+            const Real cp = std::cos(phi), sp = std::sin(phi);
+            const Real st = std::sqrt(std::fmax(Real(0), (1 - mu_o) * (1 + mu_o)));
+            return {st * (cp * ex - sp * ey), st * (cp * ey + sp * ex), reflected ? mu_o : -mu_o};
+        }
+
+        // The Snell direction of the beam leaving below (indices eta_above -> eta_below: the tangential part scales).
+        Vec3<Real> straight_through(Vec3<Real> wi) const noexcept {
+            const Real r = eta_above / eta_below;
+            const Real tx = -wi.x * r, ty = -wi.y * r;
+            const Real c2 = 1 - (tx * tx + ty * ty);
+            if (!(c2 > 0)) return {};
+            return {tx, ty, -std::sqrt(c2)};
+        }
+        // A transmitted delta's coefficient in radiance mode: (eta_wi / eta_wo)^2 (see TransportMode).
+        Real radiance_factor() const noexcept { return (eta_above / eta_below) * (eta_above / eta_below); }
+
+        // cos(dphi), dphi between -wi and wo (1 when either is along the normal).
+        static Real cos_dphi(Vec3<Real> wi, Vec3<Real> wo) noexcept {
+            const Real ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
+            if (!(ri > 0) || !(ro > 0)) return Real(1);
+            return std::fmin(std::fmax(-((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro)), Real(-1)), Real(1));
+        }
+    };
+
+    // The longest series a pair keeps (sample() sums the interpolated series in a buffer of this size).
+    static constexpr int kMaxOrder = 256;
+
+    // The side for wi, with both directions mirrored into the frame where light arrives from above; null for
+    // degenerate directions and for light from below on a one-sided table.
+    const Side* side(Vec3<Real>& wi, Vec3<Real>& wo) const noexcept {
+        if (!finite(wi) || !finite(wo) || !(wi.z != 0)) return nullptr;
+        if (wi.z > 0) return &*sides_[0];
+        if (!sides_[1]) return nullptr;
+        wi.z = -wi.z;
+        wo.z = -wo.z;
+        return &*sides_[1];
+    }
+
+    static bool finite(Vec3<Real> v) noexcept { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+    static Real check_tolerance(Real tolerance) {
+        return detail::require_closed("TabulatedBSDF tolerance", tolerance, Real(1e-7), Real(0.5));
+    }
+
+    template <class LayerReal>
+    static Side tabulate(const LayeredSurface<LayerReal>& layer, Real tolerance);
+
+    std::optional<Side> sides_[2];
+    Real tolerance_;
+};
+
+namespace detail {
+
+// A lobe's coefficients on a grid of n nodes, as LayeredSurface::fourier_coefficients gives them (K per pair).
+template <class Real>
+struct DenseLobe {
+    int n = 0, modes = 0;
+    std::vector<Real> a;
+    const Real* pair(int i, int o) const noexcept {
+        return a.data() + (static_cast<std::size_t>(i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(o)) *
+                              static_cast<std::size_t>(modes);
+    }
+};
+
+// The coefficients of both lobes of `layer` on the grid t (the incidence at t = 0 taken at a tenth of the next
+// node's cosine: the BRDF does not vanish at grazing incidence, although no light arrives there).
+template <class Real, class L>
+void layer_lobes(const LayeredSurface<L>& layer, const std::vector<Real>& t, DenseLobe<L> out[2]) {
+    std::vector<L> mu_o(t.size());
+    for (std::size_t j = 0; j < t.size(); ++j) mu_o[j] = static_cast<L>(parameter_cosine(t[j]));
+    std::vector<L> mu_i = mu_o;
+    mu_i[0] = mu_o[1] / 10;
+    const LayerOutput which[2] = {LayerOutput::subsurface_reflection, LayerOutput::transmission};
+    for (int w = 0; w < 2; ++w)
+        out[w] = {static_cast<int>(t.size()), layer.modes(), layer.fourier_coefficients(which[w], mu_i, mu_o)};
+}
+
+// The largest mu_i sum_k |a_k(table) - a_k(fine)| over the fine grid's nodes (2n - 1 of them, every other one
+// the table's): the worst error of f |wi.z| |wo.z| at any dphi.
+template <class Real, class L>
+L table_error(const std::vector<Real>& t, const DenseLobe<L>& fine, const std::vector<int>& orders) {
+    const int n = static_cast<int>(t.size()), k_max = fine.modes;
+    L worst = 0;
+    std::vector<L> c(static_cast<std::size_t>(k_max));
+    for (int i = 0; i < fine.n; ++i) {
+        const Real t_i = Real(i) / Real(fine.n - 1);
+        const L mu_i = static_cast<L>(parameter_cosine(t_i));
+        const SplineWeights<Real> si = spline_weights(n, t_i);
+        for (int o = 0; o < fine.n; ++o) {
+            const SplineWeights<Real> so = spline_weights(n, Real(o) / Real(fine.n - 1));
+            std::fill(c.begin(), c.end(), L(0));
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) {
+                    const L w[2] = {static_cast<L>(si.even[a] * so.even[b]), static_cast<L>(si.odd[a] * so.odd[b])};
+                    const int p = (si.first + a) * n + so.first + b;
+                    const L* src = fine.pair(2 * (si.first + a), 2 * (so.first + b));
+                    for (int k = 0; k < orders[static_cast<std::size_t>(p)]; ++k) c[static_cast<std::size_t>(k)] += w[k & 1] * src[k];
+                }
+            const L* exact = fine.pair(i, o);
+            L e = 0;
+            for (int k = 0; k < k_max; ++k) e += std::fabs(c[static_cast<std::size_t>(k)] - exact[k]);
+            worst = std::fmax(worst, mu_i * e);
+        }
+    }
+    return worst;
+}
+
+// Per pair of the coarse grid (every other node of `fine`), the shortest series whose dropped tail
+// sum_{k >= L} |a_k| is at most `budget` (and at most `cap` terms), keeping the mean a_0 (the pair's energy).
+template <class L>
+std::vector<int> truncated_orders(const DenseLobe<L>& fine, L budget, int cap) {
+    const int n = (fine.n + 1) / 2;
+    std::vector<int> orders(static_cast<std::size_t>(n) * static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i)
+        for (int o = 0; o < n; ++o) {
+            const L* a = fine.pair(2 * i, 2 * o);
+            int len = std::min(fine.modes, cap);
+            L tail = 0;
+            for (int k = fine.modes - 1; k >= len; --k) tail += std::fabs(a[k]);
+            while (len > 1 && tail + std::fabs(a[len - 1]) <= budget) tail += std::fabs(a[--len]);
+            if (len == 1 && a[0] == 0) len = 0;  // the mean (the pair's energy) is never cut
+            orders[static_cast<std::size_t>(i * n + o)] = len;
+        }
+    return orders;
+}
+
+// The packed table of the coarse grid's pairs, with each row's running integral of m = a_0 dmu/dt.
+template <class Real, class L>
+FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real>& jacobian, const DenseLobe<L>& fine,
+                              const std::vector<int>& orders) {
+    FourierTable<Real> tab;
+    const int n = static_cast<int>(t.size());
+    tab.offset.assign(orders.size() + 1, 0);
+    for (std::size_t p = 0; p < orders.size(); ++p) {
+        tab.offset[p + 1] = tab.offset[p] + static_cast<std::uint32_t>(orders[p]);
+        tab.max_order = std::max(tab.max_order, orders[p]);
+    }
+    if (tab.max_order == 0) return FourierTable<Real>{};
+    tab.coeffs.reserve(tab.offset.back());
+    for (int i = 0; i < n; ++i)
+        for (int o = 0; o < n; ++o)
+            for (int k = 0; k < orders[static_cast<std::size_t>(i * n + o)]; ++k)
+                tab.coeffs.push_back(static_cast<Real>(fine.pair(2 * i, 2 * o)[k]));
+    tab.cdf.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Real(0));
+    for (int i = 0; i < n; ++i) {
+        const std::size_t row = static_cast<std::size_t>(i) * static_cast<std::size_t>(n);
+        auto m = [&](int o) { return tab.mean(row + static_cast<std::size_t>(o)) * jacobian[static_cast<std::size_t>(o)]; };
+        for (int o = 0; o + 1 < n; ++o)
+            tab.cdf[row + static_cast<std::size_t>(o + 1)] =
+                tab.cdf[row + static_cast<std::size_t>(o)] + hermite_segment<Real>(n, o, false, m).integral(Real(1));
+    }
+    return tab;
+}
+
+}  // namespace detail
+
+template <class Real>
+template <class LayerReal>
+typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const LayeredSurface<LayerReal>& layer, Real tolerance) {
+    using L = LayerReal;
+    Side s;
+    s.eta_above = static_cast<Real>(layer.top().eta_above());
+    s.eta_below = static_cast<Real>(layer.bottom().eta_below());
+    const bool surface = includes(layer.outputs(), LayerOutput::surface_reflection);
+    if (surface && layer.top().rough()) {
+        const RoughDielectric<L>& r = *layer.top().rough_interface();
+        s.surface.emplace(static_cast<Real>(r.sigma()), static_cast<Real>(r.eta_above()),
+                          static_cast<Real>(r.eta_below()), r.shadowing());
+    } else if (surface) {
+        s.mirror.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
+    }
+    // Refine until the table of n nodes is within tolerance at the nodes of 2n - 1 (129 nodes at most).
+    detail::DenseLobe<L> fine[2];
+    std::vector<int> orders[2];
+    int n = 9;
+    for (;; n = 2 * n - 1) {
+        s.t = detail::grid_parameters<Real>(n);
+        detail::layer_lobes(layer, detail::grid_parameters<Real>(2 * n - 1), fine);
+        L err = 0;
+        for (int w = 0; w < 2; ++w) {
+            L scale = 0;  // the lobe's largest azimuthal mean of f |wi.z| |wo.z|
+            for (int i = 0; i < fine[w].n; ++i)
+                for (int o = 0; o < fine[w].n && fine[w].modes > 0; ++o)
+                    scale = std::fmax(scale, std::fabs(fine[w].pair(i, o)[0]) * detail::parameter_cosine(L(i) / L(fine[w].n - 1)));
+            orders[w] = detail::truncated_orders(fine[w], L(tolerance) * scale / 4, kMaxOrder);
+            if (scale > 0) err = std::fmax(err, detail::table_error(s.t, fine[w], orders[w]) / scale);
+        }
+        s.error = static_cast<Real>(err);
+        if (err <= L(tolerance) || n >= 129) break;
+    }
+    s.jacobian.resize(s.t.size());
+    for (std::size_t j = 0; j < s.t.size(); ++j) s.jacobian[j] = detail::parameter_jacobian(s.t[j]);
+    s.reflection = detail::pack_table(s.t, s.jacobian, fine[0], orders[0]);
+    s.transmission = detail::pack_table(s.t, s.jacobian, fine[1], orders[1]);
+    const std::size_t nodes = s.t.size();
+    auto at = [&](std::size_t j) { return static_cast<L>(detail::parameter_cosine(s.t[j])); };
+    if (s.surface) {  // for choosing lobes only; at mu = 0, where no light arrives, the next node's value
+        s.surface_albedo.resize(nodes);
+        for (std::size_t j = 1; j < nodes; ++j) s.surface_albedo[j] = static_cast<Real>(layer.reflectance(at(j)).surface);
+        s.surface_albedo[0] = s.surface_albedo[1];
+    }
+    if (layer.direct_reflectance(L(1)) > 0 || layer.direct_transmittance(L(1)) > 0 ||
+        layer.forward_peak_reflectance(L(1)) > 0 || layer.forward_peak_transmittance(L(1)) > 0) {
+        s.beam_reflected.resize(nodes);
+        s.beam_transmitted.resize(nodes);
+        for (std::size_t j = 0; j < nodes; ++j) {
+            s.beam_reflected[j] = static_cast<Real>(layer.direct_reflectance(at(j)) + layer.forward_peak_reflectance(at(j)));
+            s.beam_transmitted[j] =
+                static_cast<Real>(layer.direct_transmittance(at(j)) + layer.forward_peak_transmittance(at(j)));
+        }
+    }
+    return s;
+}
+
+}  // namespace stratum

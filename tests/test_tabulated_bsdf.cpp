@@ -1,0 +1,359 @@
+// TabulatedBSDF (tabulated_bsdf.hpp) and LayeredSurface::fourier_coefficients, against the solved layer they come
+// from (direct evaluation, its reflectance and transmittance), and the sampler against its own pdf (chi-square),
+// numerical integration (the pdf's total) and a white furnace. docs/physics.md section 9.
+#include <stratum/tabulated_bsdf.hpp>
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "test_util.hpp"
+
+using namespace stratum;
+using stratum_test::pi;
+using stratum_test::uniform;
+
+namespace {
+
+// Stam's skin layer (docs/physics.md section 5): n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8, e^-tau = 0.5.
+LayeredSurface<double> skin(int ordinates = 16) {
+    LayerOptions o;
+    o.ordinates = ordinates;
+    return solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), RoughDielectric<double>(0.3, 1.0, 1.4),
+                       RoughDielectric<double>(0.3, 1.4, 1.0), o);
+}
+// A layer that differs from its turned-over self: n 1 | 1.4 | 1.2, sigma 0.3 above and 0.5 below. Turned over
+// (light from below), its faces are exchanged, each with its indices swapped.
+LayeredSurface<double> asymmetric(bool turned_over, int ordinates = 16) {
+    LayerOptions o;
+    o.ordinates = ordinates;
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.5, 1.4, 1.2);
+    const RoughDielectric<double> top_turned(0.5, 1.2, 1.4), bottom_turned(0.3, 1.4, 1.0);
+    const Slab<double> slab = Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    return turned_over ? solve_layer(slab, top_turned, bottom_turned, o) : solve_layer(slab, top, bottom, o);
+}
+// A slab of index 1.5 with smooth faces in air: the mirror reflection and the direct beam are deltas.
+LayeredSurface<double> glass_slab() {
+    LayerOptions o;
+    o.ordinates = 16;
+    return solve_layer(Slab<double>(0.8, 0.5, 1.0), SmoothDielectric<double>(1.0, 1.5), SmoothDielectric<double>(1.5, 1.0), o);
+}
+
+Vec3<double> direction(double mu, double phi) { return spherical_direction(mu, phi); }
+
+// The largest azimuthal mean of f |wi.z| |wo.z| of a lobe, from the layer's coefficients on a 101 x 101 grid.
+double lobe_scale(const LayeredSurface<double>& layer, LayerOutput which) {
+    std::vector<double> mu(101);
+    for (std::size_t j = 0; j < mu.size(); ++j) mu[j] = static_cast<double>(j) / 100;
+    const std::vector<double> a = layer.fourier_coefficients(which, mu, mu);
+    double s = 0;
+    for (std::size_t i = 0; i < mu.size(); ++i)
+        for (std::size_t o = 0; o < mu.size(); ++o)
+            s = std::fmax(s, mu[i] * a[(i * mu.size() + o) * static_cast<std::size_t>(layer.modes())]);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("fourier_coefficients: the series sums to subsurface_brdf and btdf, cosine-weighted") {
+    const LayeredSurface<double> layer = skin(8);
+    std::mt19937_64 rng(3);
+    const std::size_t k = static_cast<std::size_t>(layer.modes());
+    for (int n = 0; n < 200; ++n) {
+        const double mu_i = uniform(rng), mu_o = uniform(rng), dphi = 2 * pi * uniform(rng);
+        const bool transmitted = n % 2 == 1;
+        const std::vector<double> a =
+            layer.fourier_coefficients(transmitted ? LayerOutput::transmission : LayerOutput::subsurface_reflection,
+                                       {mu_i}, {mu_o});
+        REQUIRE(a.size() == k);
+        double sum = 0;
+        for (std::size_t j = 0; j < k; ++j) sum += a[j] * std::cos(static_cast<double>(j) * dphi);
+        // wi at azimuth 0, wo at azimuth pi + dphi: dphi from the propagation direction -wi.
+        const Vec3<double> wi = direction(mu_i, 0.0);
+        Vec3<double> wo = direction(mu_o, pi + dphi);
+        if (transmitted) wo.z = -wo.z;
+        const double f = transmitted ? layer.btdf(wi, wo) : layer.subsurface_brdf(wi, wo);
+        INFO("mu_i " << mu_i << " mu_o " << mu_o << " dphi " << dphi);
+        CHECK(std::fabs(std::fmax(sum, 0.0) - f * mu_o) <= 1e-12 * std::fmax(1.0, f));
+    }
+    // Cosine 0 gives 0; misuse is refused.
+    for (double x : layer.fourier_coefficients(LayerOutput::transmission, {0.0, 0.5}, {0.0})) CHECK(x == 0);
+    CHECK_THROWS_AS(layer.fourier_coefficients(LayerOutput::ambient, {0.5}, {0.5}), std::invalid_argument);
+    CHECK_THROWS_AS(layer.fourier_coefficients(LayerOutput::transmission, {1.5}, {0.5}), std::invalid_argument);
+    CHECK_THROWS_AS(layer.fourier_coefficients(LayerOutput::transmission, {0.5}, {std::nan("")}), std::invalid_argument);
+}
+
+TEST_CASE("TabulatedBSDF agrees with the layer at random true angles within its tolerance") {
+    // The tolerance bounds |f_table - f| |wi.z| |wo.z| by tolerance x the lobe's largest azimuthal mean of
+    // f |wi.z| |wo.z|, measured at construction on the next finer grid; here checked at 4000 random pairs of
+    // directions that the table never saw.
+    const LayeredSurface<double> layer = skin();
+    const double scale[2] = {lobe_scale(layer, LayerOutput::subsurface_reflection),
+                             lobe_scale(layer, LayerOutput::transmission)};
+    struct Pair {
+        Vec3<double> wi, wo;
+        double f;
+    };
+    std::vector<Pair> pairs;
+    std::mt19937_64 rng(5);
+    for (int n = 0; n < 3000; ++n) {
+        Pair p{direction(uniform(rng), 2 * pi * uniform(rng)), direction(uniform(rng), 2 * pi * uniform(rng)), 0};
+        if (n % 2 == 1) p.wo.z = -p.wo.z;
+        p.f = n % 2 == 0 ? layer.brdf(p.wi, p.wo) : layer.btdf(p.wi, p.wo);
+        pairs.push_back(p);
+    }
+    for (double tolerance : {1e-2, 3e-3}) {
+        const TabulatedBSDF<double> table(layer, tolerance);
+        CHECK(table.error() <= tolerance);
+        double worst[2] = {0, 0};
+        for (const Pair& p : pairs) {
+            const int lobe = p.wo.z > 0 ? 0 : 1;
+            worst[lobe] = std::fmax(worst[lobe], std::fabs(table.eval(p.wi, p.wo) - p.f) * p.wi.z * std::fabs(p.wo.z));
+        }
+        MESSAGE("tolerance " << tolerance << ": " << table.grid_size() << " nodes, " << table.memory_bytes() / 1024
+                             << " kB, measured error " << table.error() << "; at random angles "
+                             << worst[0] / scale[0] << " (reflection), " << worst[1] / scale[1] << " (transmission)");
+        CHECK(worst[0] <= tolerance * scale[0]);
+        CHECK(worst[1] <= tolerance * scale[1]);
+    }
+}
+
+TEST_CASE("TabulatedBSDF: its albedo is the integral of the layer's BRDF and BTDF") {
+    // Independent of the table: int f |wo.z| dwo = 2 pi int a_0 dmu_o, the layer's mode-0 coefficients
+    // (fourier_coefficients, checked against brdf and btdf above) integrated by a 64-point Gauss rule, plus the
+    // top's own reflectance. At 16 ordinates the layer's fluxes (reflectance(), transmittance()) agree with
+    // these integrals to 5e-4 (measured), and the table's albedo with them to 1e-3.
+    const LayeredSurface<double> layer = skin();
+    const TabulatedBSDF<double> table(layer, 3e-3);
+    const Quadrature<double> g = gauss_legendre_half<double>(64);
+    const std::vector<double> incidences = {0.05, 0.3, 0.7, 1.0};
+    const std::vector<double> a_r = layer.fourier_coefficients(LayerOutput::subsurface_reflection, incidences, g.nodes);
+    const std::vector<double> a_t = layer.fourier_coefficients(LayerOutput::transmission, incidences, g.nodes);
+    const std::size_t k = static_cast<std::size_t>(layer.modes());
+    for (std::size_t i = 0; i < incidences.size(); ++i) {
+        const double mu_i = incidences[i];
+        double r = layer.reflectance(mu_i).surface, t = 0;
+        for (std::size_t j = 0; j < g.size(); ++j) {
+            r += 2 * pi * g.weights[j] * a_r[(i * g.size() + j) * k];
+            t += 2 * pi * g.weights[j] * a_t[(i * g.size() + j) * k];
+        }
+        const auto albedo = table.albedo(mu_i);
+        INFO("mu_i " << mu_i);
+        CHECK(std::fabs(albedo.reflectance - r) <= 1e-3 * r);
+        CHECK(std::fabs(albedo.transmittance - t) <= 1e-3 * t);
+        CHECK(std::fabs(albedo.reflectance - layer.reflectance(mu_i).total()) <= 2e-3 * r);
+        CHECK(std::fabs(albedo.transmittance - layer.transmittance(mu_i)) <= 2e-3 * t);
+    }
+}
+
+namespace {
+
+// Chi-square of sample() against pdf(): bins of 10 in |mu_o| x 12 in |dphi| per hemisphere, expected
+// probabilities from pdf() by an 8 x 8 Gauss rule per bin, one bin for the deltas and one for failed samples
+// (1 - the rest); bins expecting < 20 pooled. Passes below dof + 5 sqrt(2 dof).
+void check_chi_square(const TabulatedBSDF<double>& table, Vec3<double> wi, std::mt19937_64& rng) {
+    const int n = 100000, nm = 10, np = 12;
+    const Quadrature<double> sub = gauss_legendre_half<double>(8);
+    const double phi_i = std::atan2(wi.y, wi.x);
+    std::vector<double> expected(2 * nm * np + 2, 0.0), observed(expected.size(), 0.0);
+    double total = 0;
+    for (int side = 0; side < 2; ++side)
+        for (int im = 0; im < nm; ++im)
+            for (int ip = 0; ip < np; ++ip) {
+                double p = 0;
+                for (std::size_t a = 0; a < sub.size(); ++a)
+                    for (std::size_t b = 0; b < sub.size(); ++b) {
+                        const double m = (im + sub.nodes[a]) / nm, dphi = pi * (ip + sub.nodes[b]) / np;
+                        Vec3<double> wo = direction(m, phi_i + pi + dphi);
+                        if (side == 1) wo.z = -wo.z;
+                        if (wi.z < 0) wo.z = -wo.z;
+                        p += sub.weights[a] * sub.weights[b] * table.pdf(wi, wo);
+                    }
+                p *= 2 * (1.0 / nm) * (pi / np);
+                expected[static_cast<std::size_t>(side * nm * np + im * np + ip)] = p * n;
+                total += p;
+            }
+    // The deltas' probability: the share of u_lobe that selects them (20000 stratified values, exact to 5e-5).
+    double delta = 0;
+    for (int i = 0; i < 20000; ++i) delta += table.sample(wi, (i + 0.5) / 20000, 0.5, 0.5).delta ? 1.0 / 20000 : 0.0;
+    expected[expected.size() - 2] = delta * n;
+    expected.back() = (1 - total - delta) * n;
+    for (int i = 0; i < n; ++i) {
+        const BsdfSample<double> s = table.sample(wi, uniform(rng), uniform(rng), uniform(rng));
+        if (!s.valid()) {
+            observed.back() += 1;
+            continue;
+        }
+        if (s.delta) {
+            observed[observed.size() - 2] += 1;
+            continue;
+        }
+        const bool same_side = (s.wo.z > 0) == (wi.z > 0);
+        const double m = std::fabs(s.wo.z);
+        double dphi = std::fabs(std::remainder(std::atan2(s.wo.y, s.wo.x) - phi_i - pi, 2 * pi));
+        const int im = std::min(nm - 1, static_cast<int>(m * nm)), ip = std::min(np - 1, static_cast<int>(dphi / pi * np));
+        observed[static_cast<std::size_t>((same_side ? 0 : 1) * nm * np + im * np + ip)] += 1;
+    }
+    const stratum_test::ChiSquare cs = stratum_test::pooled_chi_square(expected, observed);
+    INFO("wi.z " << wi.z << ": chi2 " << cs.value << " over " << cs.bins << " bins; 1 - int pdf - deltas "
+                 << 1 - total - delta << ", failed " << observed.back() / n);
+    CHECK(cs.value < cs.bins + 5 * std::sqrt(2.0 * cs.bins));
+    CHECK(total <= 1 + 1e-3);
+}
+
+}  // namespace
+
+TEST_CASE("TabulatedBSDF: sample() follows pdf() (chi-square), rough and smooth faces, both sides") {
+    std::mt19937_64 rng(7);
+    const TabulatedBSDF<double> table(asymmetric(false), asymmetric(true), 1e-2);
+    for (double mu : {0.95, 0.5, 0.12, -0.7}) check_chi_square(table, direction(mu, 0.4), rng);
+    const TabulatedBSDF<double> glass(glass_slab(), 1e-2);
+    for (double mu : {0.9, 0.3}) check_chi_square(glass, direction(mu, 1.0), rng);
+}
+
+TEST_CASE("TabulatedBSDF: white furnace and sample values") {
+    // The mean sample weight value |wo.z| / pdf estimates int f |wo.z| dwo plus the deltas: the table's albedo,
+    // within 4 standard errors and 1e-4 relative (albedo() integrates the spline of a_0 dmu/dt, the sampler's
+    // marginal, which differs from the integral of the interpolated a_0 within the table's error: 2e-6 measured
+    // here); every sample's value and pdf are eval's and pdf's at its direction.
+    std::mt19937_64 rng(9);
+    const TabulatedBSDF<double> table(skin(), 1e-2), glass(glass_slab(), 1e-2);
+    for (const TabulatedBSDF<double>* t : {&table, &glass})
+        for (double mu : {1.0, 0.6, 0.2, 0.03}) {
+            const Vec3<double> wi = direction(mu, 2.0);
+            const int n = 40000;
+            double sum = 0, sum2 = 0;
+            for (int i = 0; i < n; ++i) {
+                const BsdfSample<double> s = t->sample(wi, uniform(rng), uniform(rng), uniform(rng));
+                if (!s.valid()) continue;
+                const double w = s.value * std::fabs(s.wo.z) / s.pdf;
+                sum += w;
+                sum2 += w * w;
+                if (!s.delta) {
+                    CHECK(s.value == doctest::Approx(t->eval(wi, s.wo)).epsilon(1e-12));
+                    CHECK(s.pdf == doctest::Approx(t->pdf(wi, s.wo)).epsilon(1e-12));
+                }
+            }
+            const double mean = sum / n, se = std::sqrt((sum2 / n - mean * mean) / n);
+            const auto a = t->albedo(mu);
+            INFO("mu " << mu << ": furnace " << mean << " +- " << se << ", albedo " << a.reflectance + a.transmittance);
+            CHECK(std::fabs(mean - (a.reflectance + a.transmittance)) <= 4 * se + 1e-4 * (a.reflectance + a.transmittance));
+        }
+}
+
+TEST_CASE("TabulatedBSDF: smooth faces keep the mirror reflection and the direct beam as deltas") {
+    // The albedo is the Fresnel reflection of the top, the layer's direct and forward-peak beams, and the
+    // integrals (64 x 64 Gauss rule per hemisphere) of its subsurface_brdf and btdf. Between smooth faces the
+    // layer's angular functions (exit by interpolation between ordinates) and its fluxes (reflectance(),
+    // transmittance(): exact exit totals) differ by up to 2% at 16 ordinates (the README's known limitation of
+    // smooth faces); the table follows the functions it tabulates.
+    const LayeredSurface<double> layer = glass_slab();
+    const TabulatedBSDF<double> table(layer, 1e-2);
+    const Quadrature<double> g = gauss_legendre_half<double>(64);
+    for (double mu : {1.0, 0.5, 0.1}) {
+        const Vec3<double> wi = direction(mu, 0.0);
+        double r = fresnel_dielectric(mu, 1.5) + layer.direct_reflectance(mu) + layer.forward_peak_reflectance(mu);
+        double t = layer.direct_transmittance(mu) + layer.forward_peak_transmittance(mu);
+        for (std::size_t a = 0; a < g.size(); ++a)
+            for (std::size_t b = 0; b < g.size(); ++b) {
+                Vec3<double> wo = direction(g.nodes[a], pi * g.nodes[b]);
+                const double w = 2 * pi * g.weights[a] * g.weights[b] * g.nodes[a];
+                r += w * layer.subsurface_brdf(wi, wo);
+                wo.z = -wo.z;
+                t += w * layer.btdf(wi, wo);
+            }
+        const auto a = table.albedo(mu);
+        MESSAGE("glass slab mu " << mu << ": table R " << a.reflectance << " T " << a.transmittance
+                                 << "; integrals " << r << ", " << t << "; layer fluxes " << layer.reflectance(mu).total()
+                                 << ", " << layer.transmittance(mu));
+        CHECK(std::fabs(a.reflectance - r) <= 2e-4 * r);
+        CHECK(std::fabs(a.transmittance - t) <= 2e-4 * t);
+    }
+    // At normal incidence the transmitted delta leaves straight down with the layer's direct transmittance.
+    const Vec3<double> wi{0, 0, 1};
+    bool seen = false;
+    for (int i = 0; i < 1000; ++i) {
+        const BsdfSample<double> s = table.sample(wi, (i + 0.5) / 1000, 0.3, 0.3);
+        if (!s.delta || s.reflected) continue;
+        seen = true;
+        CHECK(s.wo.z == doctest::Approx(-1.0));
+        CHECK(s.value * std::fabs(s.wo.z) == doctest::Approx(layer.direct_transmittance(1.0) +
+                                                             layer.forward_peak_transmittance(1.0)).epsilon(1e-9));
+    }
+    CHECK(seen);
+}
+
+TEST_CASE("TabulatedBSDF: sides, transport mode, degenerate input and validation") {
+    const LayeredSurface<double> above = asymmetric(false, 8), below = asymmetric(true, 8);
+    const TabulatedBSDF<double> one(above, 1e-2), two(above, below, 1e-2), flipped(below, 1e-2);
+    CHECK(!one.two_sided());
+    CHECK(two.two_sided());
+    const Vec3<double> wi = direction(0.6, 0.2), wo = direction(0.8, 2.5);
+    const Vec3<double> wi_below{wi.x, wi.y, -wi.z}, wo_below{wo.x, wo.y, -wo.z};
+    // One-sided: nothing for light from below.
+    CHECK(one.eval(wi_below, wo) == 0);
+    CHECK(one.pdf(wi_below, wo_below) == 0);
+    CHECK(!one.sample(wi_below, 0.5, 0.5, 0.5).valid());
+    // Two-sided: light from below is the turned-over layer's light from above, mirrored.
+    CHECK(two.eval(wi_below, wo_below) == flipped.eval(wi, wo));
+    CHECK(two.eval(wi_below, wo) == flipped.eval(wi, wo_below));
+    CHECK(two.pdf(wi_below, wo) == flipped.pdf(wi, wo_below));
+    CHECK(two.eval(wi, wo) == one.eval(wi, wo));
+    // Radiance mode: the arguments exchanged.
+    CHECK(one.eval(wi, wo, TransportMode::radiance) == one.eval(wo, wi));
+    CHECK(two.eval(wi, wo_below, TransportMode::radiance) == two.eval(wo_below, wi));
+    // Degenerate directions give 0 and invalid samples, never NaN.
+    const double nan = std::nan("");
+    CHECK(one.eval({nan, 0, 1}, wo) == 0);
+    CHECK(one.eval(wi, {0, 0, 0}) == 0);
+    CHECK(one.pdf({0, 1, 0}, wo) == 0);
+    CHECK(!one.sample({0, 1, 0}, 0.5, 0.5, 0.5).valid());
+    CHECK(!one.sample({nan, 0, 1}, 0.5, 0.5, 0.5).valid());
+    for (double u : {0.0, 0.999999999}) {
+        const BsdfSample<double> s = one.sample(wi, u, u, u);
+        CHECK((s.valid() ? std::isfinite(s.value) && std::isfinite(s.pdf) : s.value == 0));
+    }
+    // Validation: the tolerance.
+    CHECK_THROWS_AS(TabulatedBSDF<double>(above, 0.0), std::invalid_argument);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(above, 0.9), std::invalid_argument);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(above, nan), std::invalid_argument);
+}
+
+TEST_CASE("TabulatedBSDF<float> from a double layer: the double table rounded") {
+    const LayeredSurface<double> layer = skin(8);
+    const TabulatedBSDF<double> d(layer, 1e-2);
+    const TabulatedBSDF<float> f(layer, 1e-2f);
+    CHECK(f.grid_size() == d.grid_size());
+    std::mt19937_64 rng(13);
+    for (int n = 0; n < 500; ++n) {
+        const Vec3<double> wi = direction(uniform(rng), 2 * pi * uniform(rng));
+        Vec3<double> wo = direction(uniform(rng), 2 * pi * uniform(rng));
+        if (n % 2) wo.z = -wo.z;
+        const Vec3<float> wi_f{static_cast<float>(wi.x), static_cast<float>(wi.y), static_cast<float>(wi.z)};
+        const Vec3<float> wo_f{static_cast<float>(wo.x), static_cast<float>(wo.y), static_cast<float>(wo.z)};
+        const double a = d.eval(wi, wo), b = f.eval(wi_f, wo_f);
+        CHECK(std::fabs(a - b) <= 1e-4 * std::fmax(1.0, a));
+    }
+}
+
+TEST_CASE("TabulatedBSDF: a Lambertian floor (nothing transmitted) and outputs not requested") {
+    LayerOptions o;
+    o.ordinates = 8;
+    const LayeredSurface<double> floor =
+        solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4), Boundary<double>::lambertian(0.5, 1.4), o);
+    const TabulatedBSDF<double> t(floor, 1e-2);
+    const Vec3<double> wi = direction(0.7, 0.0);
+    CHECK(t.albedo(0.7).transmittance == 0);
+    CHECK(t.eval(wi, direction(-0.5, 1.0)) == 0);
+    CHECK(t.albedo(0.7).reflectance == doctest::Approx(floor.reflectance(0.7).total()).epsilon(5e-3));
+    LayerRequest<double> surface_only;
+    surface_only.outputs = LayerOutput::surface_reflection;
+    const LayeredSurface<double> top_only = solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
+                                                        RoughDielectric<double>(0.3, 1.4, 1.0), o, surface_only);
+    const TabulatedBSDF<double> s(top_only, 1e-2);
+    CHECK(s.eval(wi, direction(0.5, 2.0)) == RoughDielectric<double>(0.3, 1.0, 1.4).brdf(wi, direction(0.5, 2.0)));
+    CHECK(s.albedo(0.7).transmittance == 0);
+}
