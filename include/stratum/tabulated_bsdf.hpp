@@ -41,34 +41,42 @@ struct SplineWeights {
     Real even[4] = {0, 0, 0, 0}, odd[4] = {0, 0, 0, 0};
 };
 
+// x clamped to [0, 1] (NaN to 0), without the library calls that std::fmin and std::fmax compile to.
+template <class Real>
+Real clamp_unit(Real x) noexcept {
+    return x > Real(1) ? Real(1) : (x > Real(0) ? x : Real(0));
+}
+
 template <class Real>
 SplineWeights<Real> spline_weights(int n, Real u) noexcept {
-    const Real x = std::fmin(std::fmax(u, Real(0)), Real(1)) * Real(n - 1);
+    const Real x = clamp_unit(u) * Real(n - 1);
     const int j = std::min(static_cast<int>(x), n - 2);
-    const Real s = std::fmin(x - Real(j), Real(1)), s2 = s * s, s3 = s2 * s;
+    const Real s = clamp_unit(x - Real(j)), s2 = s * s, s3 = s2 * s;
     const Real h00 = 2 * s3 - 3 * s2 + 1, h01 = 3 * s2 - 2 * s3, h10 = s3 - 2 * s2 + s, h11 = s3 - s2;
     SplineWeights<Real> w;
-    w.first = std::min(std::max(j - 1, 0), n - 4);
     Real* e = w.even;
-    const int o = j - w.first;  // node j's place
-    e[o] += h00;
-    e[o + 1] += h01;
-    if (j == 0) {
-        e[o + 1] += h10;
-        e[o] -= h10;
-    } else {
-        e[o + 1] += h10 / 2;
-        e[o - 1] -= h10 / 2;
-    }
-    if (j + 1 < n - 1) {
-        e[o + 2] += h11 / 2;
-        e[o] -= h11 / 2;
+    if (j == 0) {  // d_0 = f_1 - f_0, d_1 = (f_2 - f_0) / 2
+        w.first = 0;
+        e[0] = h00 - h10 - h11 / 2;
+        e[1] = h01 + h10;
+        e[2] = h11 / 2;
+    } else if (j + 2 < n) {  // both slopes centred
+        w.first = j - 1;
+        e[0] = -h10 / 2;
+        e[1] = h00 - h11 / 2;
+        e[2] = h01 + h10 / 2;
+        e[3] = h11 / 2;
+    } else {  // the last interval: d_n-2 centred, d_n-1 by parity (0 for even modes)
+        w.first = n - 4;
+        e[1] = -h10 / 2;
+        e[2] = h00;
+        e[3] = h01 + h10 / 2;
     }
     for (int a = 0; a < 4; ++a) w.odd[a] = e[a];
-    if (j + 1 == n - 1) {  // the last interval: d_n-1 = 0 for even modes, f_n-1 - f_n-2 for odd ones
+    if (j + 2 >= n) {  // odd modes: d_n-1 = f_n-1 - f_n-2
         w.split = true;
-        w.odd[o + 1] += h11;
-        w.odd[o] -= h11;
+        w.odd[2] -= h11;
+        w.odd[3] += h11;
     }
     return w;
 }
@@ -106,7 +114,7 @@ HermiteSegment<Real> hermite_segment(int n, int j, bool even, F f) noexcept {
 template <class Real>
 Real invert_segment(const HermiteSegment<Real>& seg, Real r, Real scale) noexcept {
     const Real whole = seg.integral(Real(1));
-    Real lo = 0, hi = 1, x = whole > 0 ? std::fmin(std::fmax(r / whole, Real(0)), Real(1)) : Real(0.5);
+    Real lo = 0, hi = 1, x = whole > 0 ? clamp_unit(r / whole) : Real(0.5);
     for (int it = 0; it < 60; ++it) {
         const Real res = seg.integral(x) - r;
         if (std::fabs(res) <= 4 * std::numeric_limits<Real>::epsilon() * scale) break;
@@ -168,12 +176,12 @@ Real sample_cosine_series(const Real* c, int order, Real u) noexcept {
 // sin^k(theta) near the normal and like a power of mu near grazing: square roots in mu, smooth in t.
 template <class Real>
 Real cosine_parameter(Real mu) noexcept {
-    return Real(2) / pi_v<Real> * std::asin(std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))));
+    return Real(2) / pi_v<Real> * std::asin(std::sqrt(clamp_unit(mu)));
 }
 template <class Real>
 Real parameter_cosine(Real t) noexcept {
     const Real s = std::sin(pi_v<Real> / 2 * t);
-    return std::fmin(s * s, Real(1));
+    return clamp_unit(s * s);
 }
 // dmu/dt = (pi / 2) sin(pi t).
 template <class Real>
@@ -270,8 +278,8 @@ public:
         if (mode == TransportMode::radiance) std::swap(wi, wo);
         const Side* s = side(wi, wo);
         if (!s || !(wo.z != 0)) return Real(0);
-        const Real mu_o = std::fmin(std::fabs(wo.z), Real(1));
-        const Real a = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo).value;
+        const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
+        const Real a = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo, false).value;
         const Real surface = (wo.z > 0 && s->surface) ? s->surface->brdf(wi, wo) : Real(0);
         return surface + a / mu_o;
     }
@@ -281,9 +289,9 @@ public:
     Real pdf(Vec3<Real> wi, Vec3<Real> wo, TransportMode = TransportMode::importance) const noexcept {
         const Side* s = side(wi, wo);
         if (!s || !(wo.z != 0)) return Real(0);
-        const Albedos al = s->albedos(std::fmin(wi.z, Real(1)));
+        const Albedos al = s->albedos(detail::clamp_unit(wi.z));
         if (!(al.total > 0)) return Real(0);
-        const Real p = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo).density / al.total;
+        const Real p = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo, true).density / al.total;
         if (wo.z < 0 || !s->surface || !(al.surface > 0)) return p;
         return p + al.surface / al.total * s->surface_pdf(wi, wo);
     }
@@ -299,14 +307,14 @@ public:
         if (!s || !finite(wi) || !(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return {};
         Vec3<Real> w = wi;
         if (below) w.z = -w.z;
-        const Albedos al = s->albedos(std::fmin(w.z, Real(1)));
+        const Albedos al = s->albedos(detail::clamp_unit(w.z));
         if (!(al.total > 0)) return {};
         const Real p[5] = {al.surface, al.reflection, al.transmission, al.mirror, al.straight};
         int lobe = 0, last = 4;
         while (!(p[last] > 0)) --last;  // some lobe has albedo > 0
         Real u = u_lobe * al.total;
         while (lobe < last && (u >= p[lobe] || !(p[lobe] > 0))) u -= p[lobe++];
-        u = std::fmin(std::fmax(u / p[lobe], Real(0)), Real(1));
+        u = detail::clamp_unit(u / p[lobe]);
         BsdfSample<Real> out;
         if (lobe >= 3) {  // a delta: the mirror direction, or the beam's Snell direction below
             out.wo = lobe == 3 ? Vec3<Real>{-w.x, -w.y, w.z} : s->straight_through(w);
@@ -319,12 +327,21 @@ public:
         } else {
             out.wo = lobe == 0 ? s->sample_surface(w, u1, u2) : s->sample_lobe(lobe == 1, w, u, u1, u2);
             if (!(out.wo.z != 0)) return {};
+            // value and pdf as eval and pdf give them, computed once (in the side's frame)
             out.reflected = out.wo.z > 0;
-            Vec3<Real> wo = out.wo;
-            if (below) wo.z = -wo.z;
-            out.pdf = pdf(wi, wo);
+            const LobeValue v = s->lobe(out.reflected ? s->reflection : s->transmission, w, out.wo, true);
+            out.pdf = v.density / al.total;
+            out.value = v.value / detail::clamp_unit(std::fabs(out.wo.z));
+            if (out.reflected && s->surface) {
+                out.value += s->surface->brdf(w, out.wo);
+                if (al.surface > 0) out.pdf += al.surface / al.total * s->surface_pdf(w, out.wo);
+            }
             if (!(out.pdf > 0)) return {};
-            out.value = eval(wi, wo, mode);
+            if (mode == TransportMode::radiance) {
+                Vec3<Real> wo = out.wo;
+                if (below) wo.z = -wo.z;
+                out.value = eval(wi, wo, mode);
+            }
         }
         if (below) out.wo.z = -out.wo.z;
         return out;
@@ -339,7 +356,7 @@ public:
     Albedo albedo(Real mu) const noexcept {
         const Side* s = mu < 0 ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
         if (!s || !(std::fabs(mu) > 0)) return {Real(0), Real(0)};
-        const Albedos a = s->albedos(std::fmin(std::fabs(mu), Real(1)));
+        const Albedos a = s->albedos(detail::clamp_unit(std::fabs(mu)));
         return {a.surface + a.reflection + a.mirror, a.transmission + a.straight};
     }
 
@@ -391,35 +408,49 @@ private:
             return c * jacobian[static_cast<std::size_t>(b)];
         }
 
-        LobeValue lobe(const detail::FourierTable<Real>& tab, Vec3<Real> wi, Vec3<Real> wo) const noexcept {
-            if (tab.empty()) return {};
-            const detail::SplineWeights<Real> si = weights(std::fmin(wi.z, Real(1)));
-            const Real t_o = detail::cosine_parameter(std::fmin(std::fabs(wo.z), Real(1)));
-            const detail::SplineWeights<Real> so = detail::spline_weights(n(), t_o);
-            const Real x = cos_dphi(wi, wo), x2 = 2 * x * x - 1;
-            const bool split = si.split || so.split;
-            Real g = 0, mean = 0, m = 0;
+        // The series interpolated at (t_i, t_o): c[k] = sum over the 16 pairs of weight x a_k, each mode with the
+        // weights of its parity; returns its length (c must hold kMaxOrder). Summing the coefficients first and the
+        // series once is cheaper than a series per pair.
+        int interpolate(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
+                        const detail::SplineWeights<Real>& so, Real* c) const noexcept {
+            int order = 0;
             for (int a = 0; a < 4; ++a)
                 for (int b = 0; b < 4; ++b) {
-                    const Real w = si.even[a] * so.even[b];
                     const std::size_t p = pair(si, a, so, b);
-                    const Real all = detail::cosine_series(tab.pair(p), tab.order(p), x);
-                    mean += w * tab.mean(p);
-                    if (!split) {
-                        g += w * all;
-                    } else {  // the even and odd modes with their own weights
-                        const Real even = detail::cosine_series(tab.pair(p), tab.order(p), x2, 2);
-                        g += w * even + si.odd[a] * so.odd[b] * (all - even);
+                    const int len = tab.order(p);
+                    for (int k = order; k < len; ++k) c[k] = 0;
+                    order = std::max(order, len);
+                    const Real* src = tab.pair(p);
+                    const Real we = si.even[a] * so.even[b], wo = si.odd[a] * so.odd[b];
+                    if (we == wo) {
+                        for (int k = 0; k < len; ++k) c[k] += we * src[k];
+                    } else {
+                        for (int k = 0; k < len; k += 2) c[k] += we * src[k];
+                        for (int k = 1; k < len; k += 2) c[k] += wo * src[k];
                     }
                 }
-            for (int b = 0; b < 4; ++b) m += so.odd[b] * marginal(tab, si, so.first + b);  // m is odd at t = 1
+            return order;
+        }
+
+        // value = f |wo.z| clamped to >= 0; with `density`, also the mixture density times the albedos' total.
+        LobeValue lobe(const detail::FourierTable<Real>& tab, Vec3<Real> wi, Vec3<Real> wo, bool density) const noexcept {
+            if (tab.empty()) return {};
+            const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
+            const Real t_o = detail::cosine_parameter(detail::clamp_unit(std::fabs(wo.z)));
+            const detail::SplineWeights<Real> so = detail::spline_weights(n(), t_o);
+            Real c[kMaxOrder];
+            const int order = interpolate(tab, si, so, c);
+            const Real g = detail::cosine_series(c, order, cos_dphi(wi, wo));
             LobeValue v;
             v.value = g > 0 ? g : Real(0);
+            if (!density || !(order > 0 && c[0] > 0)) return v;
             // value x (m / (dmu/dt)) / mean: the sampled density over the mixture's (see the class comment); where
             // dmu/dt vanishes (mu_o = 0 or 1, measure zero) the ratio is 1.
+            Real m = 0;
+            for (int b = 0; b < 4; ++b) m += so.odd[b] * marginal(tab, si, so.first + b);  // m is odd at t = 1
             const Real jac = detail::parameter_jacobian(t_o);
-            const Real ratio = jac > std::numeric_limits<Real>::epsilon() ? m / (jac * mean) : Real(1);
-            v.density = mean > 0 && ratio > 0 ? v.value * ratio : Real(0);
+            const Real ratio = jac > std::numeric_limits<Real>::epsilon() ? m / (jac * c[0]) : Real(1);
+            v.density = ratio > 0 ? v.value * ratio : Real(0);
             return v;
         }
 
@@ -467,7 +498,7 @@ private:
         Vec3<Real> sample_lobe(bool reflected, Vec3<Real> wi, Real u_sign, Real u1, Real u2) const noexcept {
             const detail::FourierTable<Real>& tab = reflected ? reflection : transmission;
             const int nn = n();
-            const detail::SplineWeights<Real> si = weights(std::fmin(wi.z, Real(1)));
+            const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
             const Real total = cdf(tab, si, nn - 1);
             if (!(total > 0)) return {};
             const Real target = u1 * total;
@@ -479,27 +510,19 @@ private:
             const detail::HermiteSegment<Real> seg =
                 detail::hermite_segment<Real>(nn, lo, false, [&](int b) { return marginal(tab, si, b); });
             const Real x = detail::invert_segment(seg, target - cdf(tab, si, lo), total);
-            const Real t_o = std::fmin(t[static_cast<std::size_t>(lo)] + x * seg.h, Real(1));
+            const Real t_o = detail::clamp_unit(t[static_cast<std::size_t>(lo)] + x * seg.h);
             const Real mu_o = detail::parameter_cosine(t_o);
             // The Fourier series at (mu_i, mu_o).
             const detail::SplineWeights<Real> so = detail::spline_weights(nn, t_o);
-            Real c[kMaxOrder] = {};
-            int order = 0;
-            for (int a = 0; a < 4; ++a)
-                for (int b = 0; b < 4; ++b) {
-                    const Real w[2] = {si.even[a] * so.even[b], si.odd[a] * so.odd[b]};
-                    const std::size_t p = pair(si, a, so, b);
-                    const Real* src = tab.pair(p);
-                    for (int k = 0; k < tab.order(p); ++k) c[k] += w[k & 1] * src[k];
-                    order = std::max(order, tab.order(p));
-                }
+            Real c[kMaxOrder];
+            const int order = interpolate(tab, si, so, c);
             if (!(order > 0 && c[0] > 0)) return {};
             const Real phi = detail::sample_cosine_series(c, order, u2) * (u_sign < Real(0.5) ? Real(1) : Real(-1));
             // wo's azimuth is dphi from the propagation direction -wi (the x axis when wi is the normal).
             const Real r = std::hypot(wi.x, wi.y);
             const Real ex = r > 0 ? -wi.x / r : Real(1), ey = r > 0 ? -wi.y / r : Real(0);
             const Real cp = std::cos(phi), sp = std::sin(phi);
-            const Real st = std::sqrt(std::fmax(Real(0), (1 - mu_o) * (1 + mu_o)));
+            const Real st = std::sqrt(detail::clamp_unit((1 - mu_o) * (1 + mu_o)));
             return {st * (cp * ex - sp * ey), st * (cp * ey + sp * ex), reflected ? mu_o : -mu_o};
         }
 
@@ -515,10 +538,16 @@ private:
         Real radiance_factor() const noexcept { return (eta_above / eta_below) * (eta_above / eta_below); }
 
         // cos(dphi), dphi between -wi and wo (1 when either is along the normal).
+        // The products and the square root are safe for unit vectors (and for any whose components lie within
+        // 1e-150 .. 1e150 in double); others take hypot's path, which neither overflows nor underflows.
         static Real cos_dphi(Vec3<Real> wi, Vec3<Real> wo) noexcept {
-            const Real ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
+            const Real pi2 = wi.x * wi.x + wi.y * wi.y, po2 = wo.x * wo.x + wo.y * wo.y;
+            const bool plain = pi2 >= std::numeric_limits<Real>::min() && po2 >= std::numeric_limits<Real>::min() &&
+                               pi2 <= std::numeric_limits<Real>::max() && po2 <= std::numeric_limits<Real>::max();
+            const Real ri = plain ? std::sqrt(pi2) : std::hypot(wi.x, wi.y), ro = plain ? std::sqrt(po2) : std::hypot(wo.x, wo.y);
             if (!(ri > 0) || !(ro > 0)) return Real(1);
-            return std::fmin(std::fmax(-((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro)), Real(-1)), Real(1));
+            const Real c = -((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro));
+            return c > Real(1) ? Real(1) : (c < Real(-1) ? Real(-1) : c);
         }
     };
 

@@ -1,0 +1,130 @@
+// TabulatedBSDF on Stam's skin layer (n 1 | 1.4 | 1, sigma 0.3 both sides, albedo 0.9, g 0.8, e^-tau 0.5, 16
+// ordinates): the table's construction against its tolerance, and eval, pdf and sample per call (double and
+// float) beside the direct LayeredSurface evaluation and the top interface alone (RoughDielectric).
+#include <benchmark/benchmark.h>
+
+#include <stratum/tabulated_bsdf.hpp>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace {
+
+const stratum::LayeredSurface<double>& skin() {
+    static const stratum::LayeredSurface<double> layer = [] {
+        stratum::LayerOptions options;
+        options.ordinates = 16;
+        return stratum::solve_layer(stratum::Slab<double>::from_transparency(0.9, 0.8, 0.5),
+                                    stratum::RoughDielectric<double>(0.3, 1.0, 1.4),
+                                    stratum::RoughDielectric<double>(0.3, 1.4, 1.0), options);
+    }();
+    return layer;
+}
+
+// 1024 pairs of directions (wi above; wo above and below alternately) and uniforms, fixed.
+template <class Real>
+struct Inputs {
+    std::vector<stratum::Vec3<Real>> wi, wo;
+    std::vector<Real> u;
+    Inputs() {
+        std::mt19937_64 rng(1);
+        std::uniform_real_distribution<double> uniform(0, 1);
+        for (int i = 0; i < 1024; ++i) {
+            const auto a = stratum::spherical_direction(uniform(rng), 6.283185307179586 * uniform(rng));
+            auto b = stratum::spherical_direction(uniform(rng), 6.283185307179586 * uniform(rng));
+            if (i % 2) b.z = -b.z;
+            wi.push_back({Real(a.x), Real(a.y), Real(a.z)});
+            wo.push_back({Real(b.x), Real(b.y), Real(b.z)});
+            for (int k = 0; k < 3; ++k) u.push_back(Real(uniform(rng)));
+        }
+    }
+};
+
+template <class Real>
+const stratum::TabulatedBSDF<Real>& table(double tolerance) {
+    static const stratum::TabulatedBSDF<Real> t3(skin(), Real(1e-3)), t2(skin(), Real(1e-2));
+    return tolerance < 5e-3 ? t3 : t2;
+}
+
+// Building the table from the solved layer, at tolerance 10^-range(0).
+void BM_tabulated_build(benchmark::State& state) {
+    const double tolerance = std::pow(10.0, -static_cast<double>(state.range(0)));
+    std::size_t bytes = 0;
+    int nodes = 0;
+    for (auto _ : state) {
+        const stratum::TabulatedBSDF<double> t(skin(), tolerance);
+        bytes = t.memory_bytes();
+        nodes = t.grid_size();
+        benchmark::DoNotOptimize(bytes);
+    }
+    state.counters["kB"] = static_cast<double>(bytes) / 1024;
+    state.counters["nodes"] = nodes;
+}
+BENCHMARK(BM_tabulated_build)->Arg(2)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond);
+
+// Per call, cycling through the fixed inputs; range(0) = -log10(tolerance).
+template <class Real>
+void BM_tabulated_eval(benchmark::State& state) {
+    static const Inputs<Real> in;
+    const stratum::TabulatedBSDF<Real>& t = table<Real>(std::pow(10.0, -static_cast<double>(state.range(0))));
+    std::size_t i = 0;
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(t.eval(in.wi[i], in.wo[i]));
+        i = (i + 1) & 1023;
+    }
+}
+BENCHMARK_TEMPLATE(BM_tabulated_eval, double)->Arg(2)->Arg(3);
+BENCHMARK_TEMPLATE(BM_tabulated_eval, float)->Arg(2)->Arg(3);
+
+template <class Real>
+void BM_tabulated_pdf(benchmark::State& state) {
+    static const Inputs<Real> in;
+    const stratum::TabulatedBSDF<Real>& t = table<Real>(std::pow(10.0, -static_cast<double>(state.range(0))));
+    std::size_t i = 0;
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(t.pdf(in.wi[i], in.wo[i]));
+        i = (i + 1) & 1023;
+    }
+}
+BENCHMARK_TEMPLATE(BM_tabulated_pdf, double)->Arg(2)->Arg(3);
+
+template <class Real>
+void BM_tabulated_sample(benchmark::State& state) {
+    static const Inputs<Real> in;
+    const stratum::TabulatedBSDF<Real>& t = table<Real>(std::pow(10.0, -static_cast<double>(state.range(0))));
+    std::size_t i = 0;
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(t.sample(in.wi[i], in.u[3 * i], in.u[3 * i + 1], in.u[3 * i + 2]));
+        i = (i + 1) & 1023;
+    }
+}
+BENCHMARK_TEMPLATE(BM_tabulated_sample, double)->Arg(2)->Arg(3);
+BENCHMARK_TEMPLATE(BM_tabulated_sample, float)->Arg(2)->Arg(3);
+
+// The peers in this library: the layer evaluated directly, and the top interface's own BSDF.
+void BM_tabulated_peer_layer_eval(benchmark::State& state) {
+    static const Inputs<double> in;
+    stratum::LayeredSurface<double>::Workspace ws;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const auto& wo = in.wo[i];
+        benchmark::DoNotOptimize(wo.z > 0 ? skin().brdf(in.wi[i], wo, ws) : skin().btdf(in.wi[i], wo, ws));
+        i = (i + 1) & 1023;
+    }
+}
+BENCHMARK(BM_tabulated_peer_layer_eval)->Unit(benchmark::kMicrosecond);
+
+void BM_tabulated_peer_rough_interface(benchmark::State& state) {
+    static const Inputs<double> in;
+    const stratum::RoughDielectric<double> top(0.3, 1.0, 1.4);
+    std::size_t i = 0;
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(top.eval(in.wi[i], in.wo[i]));
+        benchmark::DoNotOptimize(top.sample(in.wi[i], in.u[3 * i], in.u[3 * i + 1], in.u[3 * i + 2]));
+        i = (i + 1) & 1023;
+    }
+}
+BENCHMARK(BM_tabulated_peer_rough_interface);
+
+}  // namespace
