@@ -110,14 +110,15 @@ HermiteSegment<Real> hermite_segment(int n, int j, bool even, F f) noexcept {
 }
 
 // The t in [0, 1] where the segment's integral reaches r (0 <= r <= its integral up to rounding): Newton's method
-// kept inside a bracket that bisection shrinks; `scale` sets the residual counted as rounding.
+// kept inside a bracket that bisection shrinks, stopped at a residual of eps^(2/3) `scale` (as
+// sample_cosine_series).
 template <class Real>
 Real invert_segment(const HermiteSegment<Real>& seg, Real r, Real scale) noexcept {
     const Real whole = seg.integral(Real(1));
     Real lo = 0, hi = 1, x = whole > 0 ? clamp_unit(r / whole) : Real(0.5);
     for (int it = 0; it < 60; ++it) {
         const Real res = seg.integral(x) - r;
-        if (std::fabs(res) <= 4 * std::numeric_limits<Real>::epsilon() * scale) break;
+        if (std::fabs(res) <= std::cbrt(std::numeric_limits<Real>::epsilon() * std::numeric_limits<Real>::epsilon()) * scale) break;
         if (res > 0) hi = x; else lo = x;
         const Real d = seg.h * seg.value(x);
         const Real next = d > 0 ? x - res / d : Real(-1);
@@ -141,20 +142,25 @@ Real cosine_series(const Real* c, int order, Real x, int stride = 1) noexcept {
     return c[0] + x * b1 - b2;
 }
 
-// Samples phi in [0, pi] with density proportional to g(phi) = sum_k c_k cos(k phi) (c_0 > 0) by inverting
-// G(phi) = c_0 phi + sum_{k >= 1} c_k sin(k phi) / k = u c_0 pi: Newton's method kept inside a bracket that
-// bisection shrinks. Where the truncated series dips below 0 the CDF is not monotone; the root found is still in
-// [0, pi] and the caller's pdf (the clamped g) tells the truth about it.
+// Samples phi in [0, pi] with density proportional to g(phi) = sum_k c_k cos(k phi) (c_0 > 0, order <= 256) by
+// inverting G(phi) = c_0 phi + sum_{k >= 1} c_k sin(k phi) / k = u c_0 pi: Newton's method kept inside a bracket
+// that bisection shrinks, stopped at a residual of eps^(2/3) c_0 pi (Newton's next step would reach rounding; the
+// caller evaluates pdf at the phi returned, so a residual moves the sample, never the density it reports).
+// Where the truncated series dips below 0 the CDF is not monotone; the root found is still in [0, pi] and the
+// caller's pdf (the clamped g) tells the truth about it.
 template <class Real>
 Real sample_cosine_series(const Real* c, int order, Real u) noexcept {
     const Real pi = pi_v<Real>, target = u * c[0] * pi;
+    const Real tolerance = std::cbrt(std::numeric_limits<Real>::epsilon() * std::numeric_limits<Real>::epsilon()) * c[0] * pi;
+    Real b[256];  // c_k / k
+    for (int k = 1; k < order; ++k) b[k] = c[k] / Real(k);
     Real lo = 0, hi = pi, phi = u * pi;
     for (int it = 0; it < 60; ++it) {
         const Real cp = std::cos(phi), sp = std::sin(phi);
         Real G = c[0] * phi, g = c[0];
         Real s_prev = 0, s_k = sp, c_prev = 1, c_k = cp;  // sin(k phi), cos(k phi) by recurrence
         for (int k = 1; k < order; ++k) {
-            G += c[k] * s_k / Real(k);
+            G += b[k] * s_k;
             g += c[k] * c_k;
             const Real s_next = 2 * cp * s_k - s_prev, c_next = 2 * cp * c_k - c_prev;
             s_prev = s_k;
@@ -163,7 +169,7 @@ Real sample_cosine_series(const Real* c, int order, Real u) noexcept {
             c_k = c_next;
         }
         const Real r = G - target;
-        if (std::fabs(r) <= 4 * std::numeric_limits<Real>::epsilon() * c[0] * pi) break;
+        if (std::fabs(r) <= tolerance) break;
         if (r > 0) hi = phi; else lo = phi;
         const Real next = g > 0 ? phi - r / g : Real(-1);
         phi = (next > lo && next < hi) ? next : (lo + hi) / 2;
