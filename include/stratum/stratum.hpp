@@ -20,6 +20,7 @@
 #include "layer.hpp"
 #include "slab.hpp"
 #include "tabulated_bsdf.hpp"
+#include "pbrt_bsdf.hpp"
 
 // Diffusion
 #include "dipole.hpp"

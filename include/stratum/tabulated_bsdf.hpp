@@ -268,6 +268,37 @@ public:
     }
 
     bool two_sided() const noexcept { return sides_[1].has_value(); }
+
+    /// Raw access, for export (pbrt_bsdf.hpp) and inspection. The longest series a pair keeps:
+    static constexpr int max_order = 256;
+    /// The tabulated cosines of a side (0 = mu_0 < ... < mu_n-1 = 1); empty for the lower side of a one-sided table.
+    std::vector<Real> grid_cosines(bool from_below = false) const {
+        std::vector<Real> mu;
+        if (const Side* s = from_below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0])
+            for (Real t : s->t) mu.push_back(detail::parameter_cosine(t));
+        return mu;
+    }
+    /// The interpolated series of f |wo.z| = sum_k a_k cos(k dphi) of the subsurface reflection (transmitted =
+    /// false) or the transmission, for light arriving from above (from_below = false) at cosine mu_i and leaving at
+    /// |cosine| mu_o (both in [0, 1]): writes a_0 .. a_{L-1} to out (room for max_order) and returns L (0 where
+    /// nothing is tabulated). At the grid's nodes these are the stored coefficients.
+    int coefficients(bool from_below, bool transmitted, Real mu_i, Real mu_o, Real* out) const noexcept {
+        const Side* s = from_below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
+        if (!s) return 0;
+        const detail::FourierTable<Real>& tab = transmitted ? s->transmission : s->reflection;
+        if (tab.empty()) return 0;
+        return s->interpolate(tab, s->weights(detail::clamp_unit(mu_i)), s->weights(detail::clamp_unit(mu_o)), out);
+    }
+    /// The top's rough interface whose reflection the table keeps analytic (none for a smooth or index-matched top,
+    /// or when the surface reflection was not requested).
+    const std::optional<RoughDielectric<Real>>& surface(bool from_below = false) const noexcept {
+        static const std::optional<RoughDielectric<Real>> none;
+        const Side* s = from_below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
+        return s ? s->surface : none;
+    }
+    /// Indices outside the top and below the bottom of the side lit from above.
+    Real eta_above() const noexcept { return sides_[0]->eta_above; }
+    Real eta_below() const noexcept { return sides_[0]->eta_below; }
     Real tolerance() const noexcept { return tolerance_; }
     /// The largest error measured at construction, in the units of `tolerance` (the worse side).
     Real error() const noexcept { return std::fmax(sides_[0]->error, sides_[1] ? sides_[1]->error : Real(0)); }
@@ -558,7 +589,7 @@ private:
     };
 
     // The longest series a pair keeps (sample() sums the interpolated series in a buffer of this size).
-    static constexpr int kMaxOrder = 256;
+    static constexpr int kMaxOrder = max_order;
 
     // The side for wi, with both directions mirrored into the frame where light arrives from above; null for
     // degenerate directions and for light from below on a one-sided table.

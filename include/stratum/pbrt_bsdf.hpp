@@ -1,0 +1,315 @@
+// stratum/pbrt_bsdf.hpp -- pbrt-v3's tabulated BSDF file, the ".bsdf" that its FourierBSDF material reads and
+// layerlab writes ("SCATFUN", format version 1): build one from a TabulatedBSDF, write it, read it back, and
+// evaluate it as pbrt-v3 does, so that a layered material made here renders in pbrt-v3 unchanged:
+//   Material "fourier" "string bsdffile" "skin.bsdf"
+//
+// The file (little-endian; docs/physics.md section 9 gives the provenance of each field):
+//   header, 64 bytes: char[7] "SCATFUN", uint8 version = 1, uint32 flags = 1 (a BSDF), int32 nMu, nCoeffs, mMax,
+//     nChannels (1 here: luminance only), nBases = 1, nMetadataBytes = 0, nParameters = 0, nParameterValues = 0,
+//     float eta (index below / index above), float alpha[2] = 0, float unused[2] = 0;
+//   float mu[nMu]: cosines ascending in [-1, 1];
+//   float cdf[nMu * nMu]: per row o, the running integral over mu_i of a_0(mu_i, mu_o) along the Catmull-Rom spline;
+//   int32 {offset, length}[nMu * nMu]: the series of pair (i, o) is coeffs[offset .. offset + length);
+//   float coeffs[nCoeffs].
+// Pair (i, o) = index o nMu + i, with mu_i = cos(-wi) (wi towards the light: mu_i < 0 for light from above) and
+// mu_o = cos(wo) (the viewer); reflection where mu_i mu_o < 0. Its series is that of f(wi, wo) |mu_i| in cos(k phi),
+// phi the azimuth between -wi and wo. pbrt-v3 multiplies transmission by eta^2 in radiance transport; the file
+// holds f in the library's (importance) convention, as pbrt-v3 expects.
+// Not representable in this format: deltas (a smooth top's mirror reflection, the direct beam between specular
+// faces): they are left out, as pbrt-v3's FourierBSDF is glossy only.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <istream>
+#include <ostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "detail/math.hpp"
+#include "tabulated_bsdf.hpp"
+#include "vec3.hpp"
+
+namespace stratum {
+
+/// The content of a pbrt-v3 ".bsdf" file with one channel (see the header comment for the meaning of each field).
+struct PbrtBsdfTable {
+    float eta = 1;
+    std::vector<float> mu;
+    std::vector<float> cdf;
+    std::vector<std::int32_t> offset, length;
+    std::vector<float> coeffs;
+
+    int size() const noexcept { return static_cast<int>(mu.size()); }
+    int max_order() const noexcept {
+        std::int32_t m = 0;
+        for (std::int32_t l : length) m = l > m ? l : m;
+        return static_cast<int>(m);
+    }
+
+    /// f(wi, wo) as pbrt-v3's FourierBSDF evaluates this table in importance transport, in the library's argument
+    /// order (wi towards the light, wo towards the viewer): Catmull-Rom weights in mu_i and mu_o on the grid, the
+    /// interpolated series, max(0, .) / |mu_i|. 0 outside the grid.
+    double eval(Vec3<double> wi, Vec3<double> wo) const;
+};
+
+namespace detail {
+
+// Weights of Catmull-Rom interpolation on the non-uniform ascending nodes x[0..n-1] at u, on the interval of the
+// last node <= u: cubic Hermite with slopes (f_j+1 - f_j-1) / (x_j+1 - x_j-1), one-sided at the ends. Returns
+// the first of the four nodes (some of whose weights may be 0); false if u is outside [x_0, x_n-1].
+inline bool catmull_rom_weights(const std::vector<float>& x, double u, int& first, double w[4]) {
+    const int n = static_cast<int>(x.size());
+    if (n < 2 || !(u >= x.front() && u <= x.back())) return false;
+    int lo = 0, hi = n - 1;  // the last node <= u (u = x_n-1: the last interval)
+    while (hi - lo > 1) {
+        const int mid = (lo + hi) / 2;
+        if (x[static_cast<std::size_t>(mid)] <= u) lo = mid; else hi = mid;
+    }
+    const int j = lo;
+    const double x0 = x[static_cast<std::size_t>(j)], x1 = x[static_cast<std::size_t>(j + 1)], h = x1 - x0;
+    const double t = h > 0 ? (u - x0) / h : 0, t2 = t * t, t3 = t2 * t;
+    const double h10 = t3 - 2 * t2 + t, h11 = t3 - t2;
+    first = j - 1;
+    w[0] = 0;
+    w[1] = 2 * t3 - 3 * t2 + 1;
+    w[2] = 3 * t2 - 2 * t3;
+    w[3] = 0;
+    if (j > 0) {
+        const double s = h10 * h / (x1 - x[static_cast<std::size_t>(j - 1)]);
+        w[0] -= s;
+        w[2] += s;
+    } else {
+        w[1] -= h10;
+        w[2] += h10;
+    }
+    if (j + 2 < n) {
+        const double s = h11 * h / (x[static_cast<std::size_t>(j + 2)] - x0);
+        w[1] -= s;
+        w[3] += s;
+    } else {
+        w[1] -= h11;
+        w[2] += h11;
+    }
+    return true;
+}
+
+// int over [x_0, x_j] of the Catmull-Rom spline through f on the nodes x, for every j (the cdf of a row).
+inline void catmull_rom_running_integral(const std::vector<float>& x, const float* f, float* out) {
+    const std::size_t n = x.size();
+    double sum = 0;
+    out[0] = 0;
+    for (std::size_t j = 0; j + 1 < n; ++j) {
+        const double x0 = x[j], x1 = x[j + 1], h = x1 - x0, f0 = f[j], f1 = f[j + 1];
+        const double d0 = j > 0 ? h * (f1 - f[j - 1]) / (x1 - x[j - 1]) : f1 - f0;
+        const double d1 = j + 2 < n ? h * (f[j + 2] - f0) / (x[j + 2] - x0) : f1 - f0;
+        sum += ((d0 - d1) / 12 + (f0 + f1) / 2) * h;
+        out[j + 1] = static_cast<float>(sum);
+    }
+}
+
+// The Fourier coefficients (series in cos(k phi)) of a rough interface's BRDF between the light at cosine mu_l and
+// the viewer at mu_o, by the periodic trapezoidal rule with 2 max_order points (spectrally accurate for the
+// smooth lobe); `cosines` holds cos(2 pi k j / n) at [k n + j]. Returns the length after dropping trailing terms
+// below 1e-7 of the largest.
+template <class Real>
+int surface_coefficients(const RoughDielectric<Real>& surface, double mu_l, double mu_o, double* out, int max_order,
+                         const std::vector<double>& cosines) {
+    const int n = 2 * max_order;
+    std::vector<double> f(static_cast<std::size_t>(n));
+    const Vec3<Real> wi = spherical_direction(static_cast<Real>(mu_l), Real(0));
+    for (int j = 0; j < n; ++j) {
+        const double phi = 2 * pi_v<double> * j / n;  // the azimuth between -wi and wo
+        f[static_cast<std::size_t>(j)] =
+            static_cast<double>(surface.brdf(wi, spherical_direction(static_cast<Real>(mu_o), static_cast<Real>(pi_v<double> + phi))));
+    }
+    double largest = 0;
+    for (int k = 0; k < max_order; ++k) {
+        double s = 0;
+        for (int j = 0; j < n; ++j) s += f[static_cast<std::size_t>(j)] * cosines[static_cast<std::size_t>(k * n + j)];
+        out[k] = s * (k == 0 ? 1.0 : 2.0) / n;
+        largest = std::fmax(largest, std::fabs(out[k]));
+    }
+    int len = max_order;
+    while (len > 0 && std::fabs(out[len - 1]) <= 1e-7 * largest) --len;
+    return len;
+}
+
+}  // namespace detail
+
+inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo) const {
+    const double mu_i = -wi.z, mu_o = wo.z;
+    int fi = 0, fo = 0;
+    double wgt_i[4], wgt_o[4];
+    if (!detail::catmull_rom_weights(mu, mu_i, fi, wgt_i) || !detail::catmull_rom_weights(mu, mu_o, fo, wgt_o)) return 0;
+    const int n = size();
+    std::vector<double> a(static_cast<std::size_t>(max_order()), 0.0);
+    int order = 0;
+    for (int b = 0; b < 4; ++b)
+        for (int c = 0; c < 4; ++c) {
+            const double w = wgt_i[c] * wgt_o[b];
+            if (w == 0) continue;
+            const std::size_t p = static_cast<std::size_t>((fo + b) * n + fi + c);
+            for (int k = 0; k < length[p]; ++k) a[static_cast<std::size_t>(k)] += w * coeffs[static_cast<std::size_t>(offset[p] + k)];
+            order = length[p] > order ? length[p] : order;
+        }
+    // cos(phi) between the projections of -wi and wo (1 when either is along the normal)
+    const double ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
+    const double x = ri > 0 && ro > 0 ? std::fmin(std::fmax(-(wi.x * wo.x + wi.y * wo.y) / (ri * ro), -1.0), 1.0) : 1.0;
+    double y = 0;
+    for (int k = 0; k < order; ++k) y += a[static_cast<std::size_t>(k)] * std::cos(k * std::acos(x));
+    return y > 0 && mu_i != 0 ? y / std::fabs(mu_i) : 0;
+}
+
+/// The pbrt-v3 table of `table`: its grid of cosines mirrored to [-1, 1] with 0 twice (pairs on a 0 node are empty,
+/// so that pbrt's interpolation never mixes the hemispheres, as layerlab's files do), its tabulated lobes converted
+/// to the series of f |mu_i|, the rough top's reflection added as its own series, light from below from the
+/// table's second side (none for a one-sided table), eta = eta_below / eta_above. Deltas are left out.
+template <class Real>
+PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
+    PbrtBsdfTable out;
+    out.eta = static_cast<float>(table.eta_below() / table.eta_above());
+    const std::vector<Real> grid = table.grid_cosines();
+    const int m = static_cast<int>(grid.size()), n = 2 * m;
+    for (int j = m - 1; j >= 0; --j) out.mu.push_back(-static_cast<float>(grid[static_cast<std::size_t>(j)]));
+    for (int j = 0; j < m; ++j) out.mu.push_back(static_cast<float>(grid[static_cast<std::size_t>(j)]));
+    out.mu[static_cast<std::size_t>(m - 1)] = 0.0f;  // -0 as 0
+    const int cap = TabulatedBSDF<Real>::max_order, surface_modes = cap / 2;
+    std::vector<double> cosines(static_cast<std::size_t>(2 * surface_modes * surface_modes));
+    for (int k = 0; k < surface_modes; ++k)
+        for (int j = 0; j < 2 * surface_modes; ++j)
+            cosines[static_cast<std::size_t>(k * 2 * surface_modes + j)] = std::cos(detail::pi_v<double> * k * j / surface_modes);
+    std::vector<Real> a(static_cast<std::size_t>(cap));
+    std::vector<double> s(static_cast<std::size_t>(cap)), b(static_cast<std::size_t>(cap));
+    out.offset.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), 0);
+    out.length.assign(out.offset.size(), 0);
+    for (int o = 0; o < n; ++o)
+        for (int i = 0; i < n; ++i) {
+            const std::size_t p = static_cast<std::size_t>(o * n + i);
+            out.offset[p] = static_cast<std::int32_t>(out.coeffs.size());
+            const double mu_i = out.mu[static_cast<std::size_t>(i)], mu_o = out.mu[static_cast<std::size_t>(o)];
+            if (mu_i == 0 || mu_o == 0) continue;
+            const bool from_below = mu_i > 0, transmitted = mu_i * mu_o > 0;
+            const double ai = std::fabs(mu_i), ao = std::fabs(mu_o);
+            // Tabulated: the series of f |mu_o|, times |mu_i| / |mu_o|; the grid's own nodes, so these are stored values.
+            const int lt = table.coefficients(from_below, transmitted, static_cast<Real>(ai), static_cast<Real>(ao), a.data());
+            int len = lt;
+            for (int k = 0; k < lt; ++k) b[static_cast<std::size_t>(k)] = static_cast<double>(a[static_cast<std::size_t>(k)]) * ai / ao;
+            const auto& surface = table.surface(from_below);
+            if (!transmitted && surface) {
+                const int ls = detail::surface_coefficients(*surface, ai, ao, s.data(), surface_modes, cosines);
+                for (int k = len; k < ls; ++k) b[static_cast<std::size_t>(k)] = 0;
+                for (int k = 0; k < ls; ++k) b[static_cast<std::size_t>(k)] += s[static_cast<std::size_t>(k)] * ai;
+                len = ls > len ? ls : len;
+            }
+            for (int k = 0; k < len; ++k) out.coeffs.push_back(static_cast<float>(b[static_cast<std::size_t>(k)]));
+            out.length[p] = static_cast<std::int32_t>(len);
+        }
+    out.cdf.assign(out.offset.size(), 0.0f);
+    std::vector<float> a0(static_cast<std::size_t>(n));
+    for (int o = 0; o < n; ++o) {
+        for (int i = 0; i < n; ++i) {
+            const std::size_t p = static_cast<std::size_t>(o * n + i);
+            a0[static_cast<std::size_t>(i)] = out.length[p] > 0 ? out.coeffs[static_cast<std::size_t>(out.offset[p])] : 0.0f;
+        }
+        detail::catmull_rom_running_integral(out.mu, a0.data(), out.cdf.data() + static_cast<std::size_t>(o * n));
+    }
+    return out;
+}
+
+namespace detail {
+
+inline void put_bytes(std::ostream& out, const void* data, std::size_t n) {
+    // The format is little-endian; so is every host this library targets (checked where it is read).
+    out.write(static_cast<const char*>(data), static_cast<std::streamsize>(n));
+}
+inline void get_bytes(std::istream& in, void* data, std::size_t n) {
+    in.read(static_cast<char*>(data), static_cast<std::streamsize>(n));
+    if (!in) throw std::runtime_error("stratum: pbrt .bsdf file: truncated");
+}
+inline bool little_endian() noexcept {
+    const std::uint32_t one = 1;
+    unsigned char c;
+    std::memcpy(&c, &one, 1);
+    return c == 1;
+}
+
+}  // namespace detail
+
+/// Writes `table` as a pbrt-v3 ".bsdf" file. Throws std::runtime_error if the stream fails (or the host is
+/// big-endian: the format is little-endian).
+inline void write_pbrt_bsdf(std::ostream& out, const PbrtBsdfTable& table) {
+    if (!detail::little_endian()) throw std::runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
+    const std::int32_t n = table.size();
+    const char magic[8] = {'S', 'C', 'A', 'T', 'F', 'U', 'N', 1};
+    const std::uint32_t flags = 1;
+    const std::int32_t ints[8] = {n, static_cast<std::int32_t>(table.coeffs.size()), table.max_order(), 1, 1, 0, 0, 0};
+    const float floats[5] = {table.eta, 0, 0, 0, 0};
+    detail::put_bytes(out, magic, 8);
+    detail::put_bytes(out, &flags, 4);
+    detail::put_bytes(out, ints, sizeof ints);
+    detail::put_bytes(out, floats, sizeof floats);
+    detail::put_bytes(out, table.mu.data(), 4 * table.mu.size());
+    detail::put_bytes(out, table.cdf.data(), 4 * table.cdf.size());
+    for (std::size_t p = 0; p < table.offset.size(); ++p) {
+        detail::put_bytes(out, &table.offset[p], 4);
+        detail::put_bytes(out, &table.length[p], 4);
+    }
+    detail::put_bytes(out, table.coeffs.data(), 4 * table.coeffs.size());
+    if (!out) throw std::runtime_error("stratum: pbrt .bsdf file: write failed");
+}
+inline void write_pbrt_bsdf(const std::string& path, const PbrtBsdfTable& table) {
+    std::ofstream out(path, std::ios::binary);
+    if (!out) throw std::runtime_error("stratum: cannot open " + path + " for writing");
+    write_pbrt_bsdf(out, table);
+}
+
+/// Reads a pbrt-v3 ".bsdf" file with the checks pbrt-v3 makes (identifier and version 1, flags 1, one basis) and
+/// one channel (this library writes luminance only). Throws std::runtime_error naming what is wrong.
+inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
+    if (!detail::little_endian()) throw std::runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
+    char magic[8];
+    std::uint32_t flags = 0;
+    std::int32_t ints[8];
+    float floats[5];
+    detail::get_bytes(in, magic, 8);
+    if (std::memcmp(magic, "SCATFUN\x01", 8) != 0) throw std::runtime_error("stratum: not a pbrt .bsdf file of version 1");
+    detail::get_bytes(in, &flags, 4);
+    detail::get_bytes(in, ints, sizeof ints);
+    detail::get_bytes(in, floats, sizeof floats);
+    const std::int32_t n = ints[0], n_coeffs = ints[1], channels = ints[3], bases = ints[4];
+    if (flags != 1) throw std::runtime_error("stratum: pbrt .bsdf file: flags = " + std::to_string(flags) + " (1 expected)");
+    if (bases != 1 || channels != 1)
+        throw std::runtime_error("stratum: pbrt .bsdf file: " + std::to_string(channels) + " channels and " +
+                                 std::to_string(bases) + " bases (1 and 1 supported)");
+    if (n < 2 || n > 100000 || n_coeffs < 0 || ints[6] != 0)
+        throw std::runtime_error("stratum: pbrt .bsdf file: invalid sizes");
+    PbrtBsdfTable t;
+    t.eta = floats[0];
+    const std::size_t nn = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
+    t.mu.resize(static_cast<std::size_t>(n));
+    t.cdf.resize(nn);
+    t.offset.resize(nn);
+    t.length.resize(nn);
+    t.coeffs.resize(static_cast<std::size_t>(n_coeffs));
+    detail::get_bytes(in, t.mu.data(), 4 * t.mu.size());
+    detail::get_bytes(in, t.cdf.data(), 4 * nn);
+    for (std::size_t p = 0; p < nn; ++p) {
+        detail::get_bytes(in, &t.offset[p], 4);
+        detail::get_bytes(in, &t.length[p], 4);
+        if (t.offset[p] < 0 || t.length[p] < 0 || t.offset[p] > n_coeffs - t.length[p])
+            throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
+    }
+    detail::get_bytes(in, t.coeffs.data(), 4 * t.coeffs.size());
+    return t;
+}
+inline PbrtBsdfTable read_pbrt_bsdf(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("stratum: cannot open " + path);
+    return read_pbrt_bsdf(in);
+}
+
+}  // namespace stratum
