@@ -8,8 +8,8 @@
 // base. Light: a sky (zenith blue, white horizon, brown ground) and a sun of 1 degree radius.
 // Each pixel averages camera paths of one bounce: the camera ray meets a sphere, the BSDF is sampled
 // (TransportMode::radiance: wi is the viewer) and the path gathers the sky, and the sun is sampled too, the two
-// combined by multiple importance sampling (power heuristic). One table per colour channel; the green one samples,
-// all three evaluate.
+// combined by multiple importance sampling (power heuristic). One table per material holds the three colour
+// channels on one grid; its luminance drives sampling.
 //
 // Usage: render_sphere [width] [samples per pixel]     (defaults 400 and 32; the image is width x width/2)
 #include <stratum/tabulated_bsdf.hpp>
@@ -57,39 +57,37 @@ V sample_sun(Real u1, Real u2) {
     return s * std::cos(phi) * a + s * std::sin(phi) * b + c * sun_direction;
 }
 
-// A material: one table per channel (red, green, blue); green samples.
-struct Material {
-    std::vector<stratum::TabulatedBSDF<Real>> rgb;
-};
+// A material: red, green and blue on one grid, the luminance (linear sRGB weights) sampled.
+using Material = stratum::TabulatedBSDF<Real>;
+const std::vector<Real> luminance = {0.2126, 0.7152, 0.0722};
 
 Material skin() {
     stratum::LayerOptions options;
     options.ordinates = 16;
     const stratum::PreparedBoundary<Real> top(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options);
-    Material m;
+    std::vector<stratum::LayeredSurface<Real>> rgb;
     for (Real dermis : {0.75, 0.42, 0.32})
-        m.rgb.emplace_back(stratum::solve_layer(stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5), top,
-                                                stratum::PreparedBoundary<Real>(stratum::Boundary<Real>::lambertian(dermis, 1.4), options)),
-                           Real(1e-2));
-    return m;
+        rgb.push_back(stratum::solve_layer(stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5), top,
+                                           stratum::PreparedBoundary<Real>(stratum::Boundary<Real>::lambertian(dermis, 1.4), options)));
+    return Material(rgb, Real(1e-2), luminance);
 }
 
 Material glazed_tile() {
     stratum::LayerOptions options;
     options.ordinates = 16;
-    Material m;
+    std::vector<stratum::LayeredSurface<Real>> rgb;
     for (Real base : {0.7, 0.12, 0.08})
-        m.rgb.emplace_back(stratum::solve_layer(stratum::Slab<Real>(0.9, 0.0, 0.05), stratum::SmoothDielectric<Real>(1.0, 1.5),
-                                                stratum::Boundary<Real>::lambertian(base, 1.5), options),
-                           Real(1e-2));
-    return m;
+        rgb.push_back(stratum::solve_layer(stratum::Slab<Real>(0.9, 0.0, 0.05), stratum::SmoothDielectric<Real>(1.0, 1.5),
+                                           stratum::Boundary<Real>::lambertian(base, 1.5), options));
+    return Material(rgb, Real(1e-2), luminance);
 }
 
 // f(wi, wo) |wo.z| per channel, wi towards the viewer (local frame).
 Rgb throughput(const Material& m, V wi, V wo) {
-    const stratum::TransportMode radiance = stratum::TransportMode::radiance;
+    Real f[3];
+    m.eval(wi, wo, f, stratum::TransportMode::radiance);
     const Real c = std::fabs(wo.z);
-    return {c * m.rgb[0].eval(wi, wo, radiance), c * m.rgb[1].eval(wi, wo, radiance), c * m.rgb[2].eval(wi, wo, radiance)};
+    return {c * f[0], c * f[1], c * f[2]};
 }
 
 // The radiance leaving the surface towards the viewer (wi, local frame): one BSDF sample and one sun sample.
@@ -103,24 +101,22 @@ Rgb shade(const Material& m, V wi, V n, V t, V b, std::mt19937_64& rng) {
     };
     const Rgb sun{sun_radiance, sun_radiance, sun_radiance};
     // The BSDF sample: the sky, and the sun where it hits it (weighted against the sun sample's density).
-    const stratum::BsdfSample<Real> s = m.rgb[1].sample(wi, uniform(rng), uniform(rng), uniform(rng), stratum::TransportMode::radiance);
+    Real v[3];
+    const stratum::BsdfSample<Real> s =
+        m.sample(wi, uniform(rng), uniform(rng), uniform(rng), v, stratum::TransportMode::radiance);
     if (s.valid() && s.wo.z > 0) {  // transmitted light is lost under the layer
         const V world = s.wo.x * t + s.wo.y * b + s.wo.z * n;
-        if (s.delta) {  // the coat's mirror: the same for every channel, and the only way to see the sun in it
-            const Real w = s.value * s.wo.z / s.pdf;
-            add({w, w, w}, 1, sky(world));
-            if (in_sun(world)) add({w, w, w}, 1, sun);
-        } else {
-            const Rgb f = throughput(m, wi, s.wo);
-            add(f, 1 / s.pdf, sky(world));
-            if (in_sun(world)) add(f, s.pdf / (s.pdf * s.pdf + sun_pdf * sun_pdf), sun);
-        }
+        const Rgb f{v[0] * s.wo.z, v[1] * s.wo.z, v[2] * s.wo.z};
+        add(f, 1 / s.pdf, sky(world));
+        // The sun: a delta (the coat's mirror) is the only way to see it there; otherwise weighted against the sun
+        // sample's density.
+        if (in_sun(world)) add(f, s.delta ? 1 / s.pdf : s.pdf / (s.pdf * s.pdf + sun_pdf * sun_pdf), sun);
     }
     // The sun sample, weighted against the BSDF's density there (power heuristic).
     const V d = sample_sun(uniform(rng), uniform(rng));
     const V wo{stratum::dot(d, t), stratum::dot(d, b), stratum::dot(d, n)};
     if (wo.z > 0) {
-        const Real p = m.rgb[1].pdf(wi, wo, stratum::TransportMode::radiance);
+        const Real p = m.pdf(wi, wo, stratum::TransportMode::radiance);
         add(throughput(m, wi, wo), sun_pdf / (sun_pdf * sun_pdf + p * p), sun);
     }
     return out;
@@ -141,8 +137,7 @@ int main(int argc, char** argv) {
     const Material materials[2] = {skin(), glazed_tile()};
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::size_t bytes = 0;
-    for (const Material& m : materials)
-        for (const auto& t : m.rgb) bytes += t.memory_bytes();
+    for (const Material& m : materials) bytes += m.memory_bytes();
 
     // Camera at (0, 0, 6) looking down -z; spheres of radius 1 at x = -1.15 and +1.15.
     const V eye{0, 0, 6};
@@ -184,7 +179,8 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "render_sphere: cannot write render_sphere.png\n");
         return 1;
     }
-    std::printf("tables: 6 (2 materials x 3 channels), %.0f kB, solved and built in %.1f s\n", static_cast<double>(bytes) / 1024, build_s);
+    std::printf("tables: 2 (red, green, blue on one grid each), %.0f kB, solved and built in %.1f s\n",
+                static_cast<double>(bytes) / 1024, build_s);
     std::printf("rendered %d x %d at %d samples per pixel in %.1f s (%.0f ns per camera path)\n", width, height, spp,
                 render_s, 1e9 * render_s / (double(width) * height * spp));
     std::printf("wrote render_sphere.png\n");

@@ -357,3 +357,102 @@ TEST_CASE("TabulatedBSDF: a Lambertian floor (nothing transmitted) and outputs n
     CHECK(s.eval(wi, direction(0.5, 2.0)) == RoughDielectric<double>(0.3, 1.0, 1.4).brdf(wi, direction(0.5, 2.0)));
     CHECK(s.albedo(0.7).transmittance == 0);
 }
+
+TEST_CASE("TabulatedBSDF with channels: one grid for RGB, the luminance sampled, every channel as its own layer") {
+    LayerOptions o;
+    o.ordinates = 8;
+    std::vector<Slab<double>> slabs;
+    for (double albedo : {0.95, 0.85, 0.6}) slabs.push_back(Slab<double>::from_transparency(albedo, 0.8, 0.5));
+    const std::vector<LayeredSurface<double>> layers =
+        solve_spectral(slabs, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0), o);
+    const std::vector<double> w = {0.2126, 0.7152, 0.0722};
+    const TabulatedBSDF<double> rgb(layers, 1e-2, w);
+    CHECK(rgb.channels() == 3);
+    std::vector<TabulatedBSDF<double>> single;
+    std::size_t bytes = 0;
+    for (const auto& l : layers) {
+        single.emplace_back(l, 1e-2);
+        bytes += single.back().memory_bytes();
+    }
+    MESSAGE("RGB on one grid: " << rgb.memory_bytes() / 1024 << " kB, " << rgb.grid_size() << " nodes; three tables: "
+                                << bytes / 1024 << " kB");
+    std::mt19937_64 rng(17);
+    double worst = 0, scale = 0;
+    int compared = 0;
+    for (int n = 0; n < 1500; ++n) {
+        const Vec3<double> wi = direction(uniform(rng), 2 * pi * uniform(rng));
+        Vec3<double> wo = direction(uniform(rng), 2 * pi * uniform(rng));
+        if (n % 2) wo.z = -wo.z;
+        double v[3];
+        rgb.eval(wi, wo, v);
+        double lum = 0;
+        for (int c = 0; c < 3; ++c) {
+            // Each channel against its own layer, evaluated directly (the table's error, as for one channel).
+            const double direct = n % 2 ? layers[static_cast<std::size_t>(c)].btdf(wi, wo)
+                                        : layers[static_cast<std::size_t>(c)].brdf(wi, wo);
+            worst = std::fmax(worst, std::fabs(v[c] - direct) * wi.z * std::fabs(wo.z));
+            scale = std::fmax(scale, direct * wi.z * std::fabs(wo.z));
+            lum += w[static_cast<std::size_t>(c)] * v[c];
+        }
+        // The luminance is the weighted sum of the channels (the derived channel makes it so, to rounding), where
+        // no series was clamped at 0 (truncated series ring below 0 at grazing angles at 8 ordinates).
+        if (v[0] > 0 && v[1] > 0 && v[2] > 0) {
+            ++compared;
+            CHECK(rgb.eval(wi, wo) == doctest::Approx(lum).epsilon(1e-9));
+        }
+    }
+    CHECK(compared > 1400);
+    INFO("worst |df| |cos cos| " << worst << " of " << scale);
+    CHECK(worst <= 1e-2 * scale);
+    // Sampling the luminance, each channel's weight estimates that channel's albedo (its own one-channel table's).
+    for (double mu : {0.9, 0.4}) {
+        const Vec3<double> wi = direction(mu, 1.0);
+        const int n = 40000;
+        double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+        for (int i = 0; i < n; ++i) {
+            double v[3];
+            const BsdfSample<double> s = rgb.sample(wi, uniform(rng), uniform(rng), uniform(rng), v);
+            if (!s.valid()) continue;
+            CHECK(s.value == doctest::Approx(rgb.eval(wi, s.wo)).epsilon(1e-12));
+            for (int c = 0; c < 3; ++c) {
+                const double x = v[c] * std::fabs(s.wo.z) / s.pdf;
+                sum[c] += x;
+                sum2[c] += x * x;
+            }
+        }
+        for (int c = 0; c < 3; ++c) {
+            const double mean = sum[c] / n, se = std::sqrt((sum2[c] / n - mean * mean) / n);
+            const auto a = single[static_cast<std::size_t>(c)].albedo(mu);
+            INFO("mu " << mu << " channel " << c << ": " << mean << " +- " << se << " vs " << a.reflectance + a.transmittance);
+            CHECK(std::fabs(mean - (a.reflectance + a.transmittance)) <= 4 * se + 2e-3 * (a.reflectance + a.transmittance));
+        }
+    }
+}
+
+TEST_CASE("TabulatedBSDF with channels: per-channel deltas between smooth faces, and misuse refused") {
+    LayerOptions o;
+    o.ordinates = 8;
+    std::vector<Slab<double>> slabs = {Slab<double>(0.8, 0.5, 0.5), Slab<double>(0.8, 0.5, 1.0), Slab<double>(0.8, 0.5, 2.0)};
+    const std::vector<LayeredSurface<double>> layers =
+        solve_spectral(slabs, SmoothDielectric<double>(1.0, 1.5), SmoothDielectric<double>(1.5, 1.0), o);
+    const TabulatedBSDF<double> rgb(layers, 1e-2);
+    int seen = 0;
+    for (int i = 0; i < 200; ++i) {
+        double v[3];
+        const BsdfSample<double> s = rgb.sample(Vec3<double>{0, 0, 1}, (i + 0.5) / 200, 0.5, 0.5, v);
+        if (!s.delta || s.reflected) continue;
+        ++seen;
+        for (int c = 0; c < 3; ++c) {
+            const auto& l = layers[static_cast<std::size_t>(c)];
+            CHECK(v[c] == doctest::Approx(l.direct_transmittance(1.0) + l.forward_peak_transmittance(1.0)).epsilon(1e-9));
+        }
+    }
+    CHECK(seen > 0);
+    // Misuse: different faces, wrong number of weights, a weight <= 0, no channels.
+    const std::vector<LayeredSurface<double>> mixed = {layers[0], solve_layer(slabs[0], SmoothDielectric<double>(1.0, 1.4),
+                                                                                SmoothDielectric<double>(1.4, 1.0), o)};
+    CHECK_THROWS_AS(TabulatedBSDF<double>(mixed, 1e-2), std::invalid_argument);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(layers, 1e-2, {0.5, 0.5}), std::invalid_argument);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(layers, 1e-2, {0.5, 0.5, 0.0}), std::invalid_argument);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(std::vector<LayeredSurface<double>>{}, 1e-2), std::invalid_argument);
+}

@@ -5,13 +5,13 @@
 //
 // The file (little-endian; docs/physics.md section 9 gives the provenance of each field):
 //   header, 64 bytes: char[7] "SCATFUN", uint8 version = 1, uint32 flags = 1 (a BSDF), int32 nMu, nCoeffs, mMax,
-//     nChannels (1 here: luminance only), nBases = 1, nMetadataBytes = 0, nParameters = 0, nParameterValues = 0,
+//     nChannels (1: luminance; 3: luminance Y, red, blue, green following from them), nBases = 1, nMetadataBytes = 0, nParameters = 0, nParameterValues = 0,
 //     float eta (index below / index above), float alpha[2] = 0, float unused[2] = 0;
 //   float mu[nMu]: cosines ascending in [-1, 1];
 //   float cdf[nMu * nMu]: per row o, the running integral over mu_i of a_0(mu_i, mu_o) along the Catmull-Rom spline;
 //   int32 {offset, length}[nMu * nMu]: the series of pair (i, o) is coeffs[offset .. offset + length);
 //   float coeffs[nCoeffs].
-// Pair (i, o) = index o nMu + i, with mu_i = cos(-wi) (wi towards the light: mu_i < 0 for light from above) and
+// Pair (i, o) = index o nMu + i (with 3 channels its series are Y, R, B one after another, each of its length), with mu_i = cos(-wi) (wi towards the light: mu_i < 0 for light from above) and
 // mu_o = cos(wo) (the viewer); reflection where mu_i mu_o < 0. Its series is that of f(wi, wo) |mu_i| in cos(k phi),
 // phi the azimuth between -wi and wo. pbrt-v3 multiplies transmission by eta^2 in radiance transport; the file
 // holds f in the library's (importance) convention, as pbrt-v3 expects.
@@ -35,8 +35,11 @@
 
 namespace stratum {
 
-/// The content of a pbrt-v3 ".bsdf" file with one channel (see the header comment for the meaning of each field).
+/// The content of a pbrt-v3 ".bsdf" file (see the header comment for the meaning of each field).
 struct PbrtBsdfTable {
+    /// pbrt-v3's luminance of linear RGB, and its inverse for green (src/core/reflection.cpp, FourierBSDF::f).
+    static constexpr double y_red = 0.212671, y_green = 0.715160, y_blue = 0.072169;
+    int channels = 1;  // 1 (Y) or 3 (Y, R, B)
     float eta = 1;
     std::vector<float> mu;
     std::vector<float> cdf;
@@ -52,8 +55,9 @@ struct PbrtBsdfTable {
 
     /// f(wi, wo) as pbrt-v3's FourierBSDF evaluates this table in importance transport, in the library's argument
     /// order (wi towards the light, wo towards the viewer): Catmull-Rom weights in mu_i and mu_o on the grid, the
-    /// interpolated series, max(0, .) / |mu_i|. 0 outside the grid.
-    double eval(Vec3<double> wi, Vec3<double> wo) const;
+    /// interpolated series, max(0, .) / |mu_i|; the luminance Y. With 3 channels and rgb given, also red, green
+    /// (1.39829 Y - 0.100913 B - 0.297375 R, as pbrt-v3 forms it) and blue, each >= 0. 0 outside the grid.
+    double eval(Vec3<double> wi, Vec3<double> wo, double* rgb = nullptr) const;
 };
 
 namespace detail {
@@ -140,37 +144,52 @@ int surface_coefficients(const RoughDielectric<Real>& surface, double mu_l, doub
 
 }  // namespace detail
 
-inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo) const {
+inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo, double* rgb) const {
+    if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
     const double mu_i = -wi.z, mu_o = wo.z;
     int fi = 0, fo = 0;
     double wgt_i[4], wgt_o[4];
-    if (!detail::catmull_rom_weights(mu, mu_i, fi, wgt_i) || !detail::catmull_rom_weights(mu, mu_o, fo, wgt_o)) return 0;
-    const int n = size();
-    std::vector<double> a(static_cast<std::size_t>(max_order()), 0.0);
-    int order = 0;
+    if (!detail::catmull_rom_weights(mu, mu_i, fi, wgt_i) || !detail::catmull_rom_weights(mu, mu_o, fo, wgt_o) || mu_i == 0)
+        return 0;
+    const int n = size(), m = max_order();
+    std::vector<double> a(static_cast<std::size_t>(channels * m), 0.0);  // per channel, the interpolated series
     for (int b = 0; b < 4; ++b)
         for (int c = 0; c < 4; ++c) {
             const double w = wgt_i[c] * wgt_o[b];
-            if (w == 0) continue;
+            if (w == 0 || fo + b < 0 || fi + c < 0) continue;
             const std::size_t p = static_cast<std::size_t>((fo + b) * n + fi + c);
-            for (int k = 0; k < length[p]; ++k) a[static_cast<std::size_t>(k)] += w * coeffs[static_cast<std::size_t>(offset[p] + k)];
-            order = length[p] > order ? length[p] : order;
+            for (int ch = 0; ch < channels; ++ch)
+                for (int k = 0; k < length[p]; ++k)
+                    a[static_cast<std::size_t>(ch * m + k)] += w * coeffs[static_cast<std::size_t>(offset[p] + ch * length[p] + k)];
         }
     // cos(phi) between the projections of -wi and wo (1 when either is along the normal)
     const double ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
     const double x = ri > 0 && ro > 0 ? std::fmin(std::fmax(-(wi.x * wo.x + wi.y * wo.y) / (ri * ro), -1.0), 1.0) : 1.0;
-    double y = 0;
-    for (int k = 0; k < order; ++k) y += a[static_cast<std::size_t>(k)] * std::cos(k * std::acos(x));
-    return y > 0 && mu_i != 0 ? y / std::fabs(mu_i) : 0;
+    const double phi = std::acos(x);
+    double value[3] = {0, 0, 0};
+    for (int ch = 0; ch < channels; ++ch)
+        for (int k = 0; k < m; ++k) value[ch] += a[static_cast<std::size_t>(ch * m + k)] * std::cos(k * phi);
+    const double scale = 1 / std::fabs(mu_i), y = value[0] > 0 ? value[0] * scale : 0;
+    if (rgb && channels == 3) {
+        const double r = value[1] * scale, bl = value[2] * scale;
+        rgb[0] = std::fmax(r, 0.0);
+        rgb[1] = std::fmax(1.39829 * y - 0.100913 * bl - 0.297375 * r, 0.0);
+        rgb[2] = std::fmax(bl, 0.0);
+    }
+    return y;
 }
 
 /// The pbrt-v3 table of `table`: its grid of cosines mirrored to [-1, 1] with 0 twice (pairs on a 0 node are empty,
 /// so that pbrt's interpolation never mixes the hemispheres, as layerlab's files do), its tabulated lobes converted
 /// to the series of f |mu_i|, the rough top's reflection added as its own series, light from below from the
-/// table's second side (none for a one-sided table), eta = eta_below / eta_above. Deltas are left out.
+/// table's second side (none for a one-sided table), eta = eta_below / eta_above. Deltas are left out. A table of
+/// three channels (linear red, green, blue) gives a file of three (pbrt-v3's Y, R, B); any other count, the
+/// table's luminance alone.
 template <class Real>
 PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
     PbrtBsdfTable out;
+    const bool rgb = table.channels() == 3;
+    out.channels = rgb ? 3 : 1;
     out.eta = static_cast<float>(table.eta_below() / table.eta_above());
     const std::vector<Real> grid = table.grid_cosines();
     const int m = static_cast<int>(grid.size()), n = 2 * m;
@@ -183,7 +202,7 @@ PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
         for (int j = 0; j < 2 * surface_modes; ++j)
             cosines[static_cast<std::size_t>(k * 2 * surface_modes + j)] = std::cos(detail::pi_v<double> * k * j / surface_modes);
     std::vector<Real> a(static_cast<std::size_t>(cap));
-    std::vector<double> s(static_cast<std::size_t>(cap)), b(static_cast<std::size_t>(cap));
+    std::vector<double> s(static_cast<std::size_t>(cap)), b(static_cast<std::size_t>(3 * cap));
     out.offset.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), 0);
     out.length.assign(out.offset.size(), 0);
     for (int o = 0; o < n; ++o)
@@ -194,18 +213,36 @@ PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
             if (mu_i == 0 || mu_o == 0) continue;
             const bool from_below = mu_i > 0, transmitted = mu_i * mu_o > 0;
             const double ai = std::fabs(mu_i), ao = std::fabs(mu_o);
-            // Tabulated: the series of f |mu_o|, times |mu_i| / |mu_o|; the grid's own nodes, so these are stored values.
-            const int lt = table.coefficients(from_below, transmitted, static_cast<Real>(ai), static_cast<Real>(ao), a.data());
-            int len = lt;
-            for (int k = 0; k < lt; ++k) b[static_cast<std::size_t>(k)] = static_cast<double>(a[static_cast<std::size_t>(k)]) * ai / ao;
+            // Tabulated: the series of f |mu_o|, times |mu_i| / |mu_o|; the grid's own nodes, so these are stored
+            // values. b holds the channels' series one after another (at k, cap + k, 2 cap + k): the luminance, or
+            // red, green, blue.
+            std::fill(b.begin(), b.end(), 0.0);
+            int len = 0;
+            for (int ch = 0; ch < (rgb ? 3 : 1); ++ch) {
+                const int lt = table.coefficients(from_below, transmitted, static_cast<Real>(ai), static_cast<Real>(ao),
+                                                  a.data(), rgb ? ch : -1);
+                for (int k = 0; k < lt; ++k)
+                    b[static_cast<std::size_t>(ch * cap + k)] = static_cast<double>(a[static_cast<std::size_t>(k)]) * ai / ao;
+                len = lt > len ? lt : len;
+            }
             const auto& surface = table.surface(from_below);
-            if (!transmitted && surface) {
+            if (!transmitted && surface) {  // the same for every channel
                 const int ls = detail::surface_coefficients(*surface, ai, ao, s.data(), surface_modes, cosines);
-                for (int k = len; k < ls; ++k) b[static_cast<std::size_t>(k)] = 0;
-                for (int k = 0; k < ls; ++k) b[static_cast<std::size_t>(k)] += s[static_cast<std::size_t>(k)] * ai;
+                for (int ch = 0; ch < (rgb ? 3 : 1); ++ch)
+                    for (int k = 0; k < ls; ++k) b[static_cast<std::size_t>(ch * cap + k)] += s[static_cast<std::size_t>(k)] * ai;
                 len = ls > len ? ls : len;
             }
-            for (int k = 0; k < len; ++k) out.coeffs.push_back(static_cast<float>(b[static_cast<std::size_t>(k)]));
+            if (rgb) {  // write Y, R, B
+                for (int k = 0; k < len; ++k) {
+                    const std::size_t r = static_cast<std::size_t>(k), g = r + static_cast<std::size_t>(cap), bl = g + static_cast<std::size_t>(cap);
+                    out.coeffs.push_back(static_cast<float>(PbrtBsdfTable::y_red * b[r] + PbrtBsdfTable::y_green * b[g] +
+                                                            PbrtBsdfTable::y_blue * b[bl]));
+                }
+                for (int k = 0; k < len; ++k) out.coeffs.push_back(static_cast<float>(b[static_cast<std::size_t>(k)]));
+                for (int k = 0; k < len; ++k) out.coeffs.push_back(static_cast<float>(b[static_cast<std::size_t>(2 * cap + k)]));
+            } else {
+                for (int k = 0; k < len; ++k) out.coeffs.push_back(static_cast<float>(b[static_cast<std::size_t>(k)]));
+            }
             out.length[p] = static_cast<std::int32_t>(len);
         }
     out.cdf.assign(out.offset.size(), 0.0f);
@@ -246,7 +283,7 @@ inline void write_pbrt_bsdf(std::ostream& out, const PbrtBsdfTable& table) {
     const std::int32_t n = table.size();
     const char magic[8] = {'S', 'C', 'A', 'T', 'F', 'U', 'N', 1};
     const std::uint32_t flags = 1;
-    const std::int32_t ints[8] = {n, static_cast<std::int32_t>(table.coeffs.size()), table.max_order(), 1, 1, 0, 0, 0};
+    const std::int32_t ints[8] = {n, static_cast<std::int32_t>(table.coeffs.size()), table.max_order(), table.channels, 1, 0, 0, 0};
     const float floats[5] = {table.eta, 0, 0, 0, 0};
     detail::put_bytes(out, magic, 8);
     detail::put_bytes(out, &flags, 4);
@@ -267,8 +304,8 @@ inline void write_pbrt_bsdf(const std::string& path, const PbrtBsdfTable& table)
     write_pbrt_bsdf(out, table);
 }
 
-/// Reads a pbrt-v3 ".bsdf" file with the checks pbrt-v3 makes (identifier and version 1, flags 1, one basis) and
-/// one channel (this library writes luminance only). Throws std::runtime_error naming what is wrong.
+/// Reads a pbrt-v3 ".bsdf" file with the checks pbrt-v3 makes (identifier and version 1, flags 1, one basis, 1 or 3
+/// channels, no parameters). Throws std::runtime_error naming what is wrong.
 inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     if (!detail::little_endian()) throw std::runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
     char magic[8];
@@ -282,12 +319,13 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     detail::get_bytes(in, floats, sizeof floats);
     const std::int32_t n = ints[0], n_coeffs = ints[1], channels = ints[3], bases = ints[4];
     if (flags != 1) throw std::runtime_error("stratum: pbrt .bsdf file: flags = " + std::to_string(flags) + " (1 expected)");
-    if (bases != 1 || channels != 1)
+    if (bases != 1 || (channels != 1 && channels != 3))
         throw std::runtime_error("stratum: pbrt .bsdf file: " + std::to_string(channels) + " channels and " +
-                                 std::to_string(bases) + " bases (1 and 1 supported)");
+                                 std::to_string(bases) + " bases (1 or 3, and 1, supported)");
     if (n < 2 || n > 100000 || n_coeffs < 0 || ints[6] != 0)
         throw std::runtime_error("stratum: pbrt .bsdf file: invalid sizes");
     PbrtBsdfTable t;
+    t.channels = channels;
     t.eta = floats[0];
     const std::size_t nn = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
     t.mu.resize(static_cast<std::size_t>(n));
@@ -300,7 +338,8 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     for (std::size_t p = 0; p < nn; ++p) {
         detail::get_bytes(in, &t.offset[p], 4);
         detail::get_bytes(in, &t.length[p], 4);
-        if (t.offset[p] < 0 || t.length[p] < 0 || t.offset[p] > n_coeffs - t.length[p])
+        if (t.offset[p] < 0 || t.length[p] < 0 || t.length[p] > n_coeffs / channels ||
+            t.offset[p] > n_coeffs - channels * t.length[p])
             throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
     }
     detail::get_bytes(in, t.coeffs.data(), 4 * t.coeffs.size());

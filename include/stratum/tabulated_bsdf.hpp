@@ -205,17 +205,24 @@ std::vector<Real> grid_parameters(int n) {
 }
 
 // One tabulated lobe on the grid t[0..n-1] x t[0..n-1] (incidence, exit): the Fourier coefficients of f |mu_o| of
-// each pair, truncated to the order the pair needs (pair p = a n + b holds coeffs[offset[p] .. offset[p + 1])), and
-// per row a the running integral over the exit of m(t) = a_0(t_a, t) dmu/dt along the row's spline,
-// cdf[a n + b] = int_0^{t_b} m dt (so cdf[a n + n - 1] is the lobe's albedo over 2 pi at mu_a).
+// each pair, truncated to the order L the pair needs, for `series` functions (one channel; or, with several
+// channels, the luminance and all channels but one, which follows from them): pair p = a n + b holds series s at
+// coeffs[offset[p] + s L .. offset[p] + (s + 1) L). Per row a, the running integral over the exit of
+// m(t) = a_0(t_a, t) dmu/dt (series 0) along the row's spline: cdf[a n + b] = int_0^{t_b} m dt (so
+// cdf[a n + n - 1] is the lobe's albedo over 2 pi at mu_a).
 template <class Real>
 struct FourierTable {
     std::vector<std::uint32_t> offset;
     std::vector<Real> coeffs, cdf;
-    int max_order = 0;
+    int series = 1;
     bool empty() const noexcept { return coeffs.empty(); }
-    const Real* pair(std::size_t p) const noexcept { return coeffs.data() + offset[p]; }
-    int order(std::size_t p) const noexcept { return static_cast<int>(offset[p + 1] - offset[p]); }
+    int order(std::size_t p) const noexcept {
+        const std::uint32_t all = offset[p + 1] - offset[p];
+        return static_cast<int>(series == 1 ? all : all / static_cast<std::uint32_t>(series));
+    }
+    const Real* pair(std::size_t p, int s = 0) const noexcept {
+        return coeffs.data() + offset[p] + static_cast<std::size_t>(s) * static_cast<std::size_t>(order(p));
+    }
     Real mean(std::size_t p) const noexcept { return offset[p + 1] > offset[p] ? coeffs[offset[p]] : Real(0); }
 };
 
@@ -232,11 +239,11 @@ struct FourierTable {
 /// delta-M's forward peak (the layer's direct_* and forward_peak_*), are deltas.
 ///
 /// Accuracy: the grid is refined (n = 9, 17, 33, 65, 129 at most) until, at the nodes of the next finer grid, the
-/// table's f |wo.z| differs from the layer's by at most `tolerance` times the largest azimuthal mean of f |wo.z|
-/// (over both lobes and all cosines), at every dphi (the bound sums the |a_k| differences); each pair's series is
-/// cut where the dropped |a_k| sum to a quarter of that. error() reports the value measured. Between the grazing
-/// node (mu = 0, where the layer is evaluated at a tenth of the next node's cosine) and the next, the table
-/// holds what the spline gives.
+/// table's f |wi.z| |wo.z| differs from the layer's by at most `tolerance` times the lobe's largest azimuthal mean
+/// of f |wi.z| |wo.z|, at every dphi (the bound sums the |a_k| differences); each pair's series is cut where the
+/// dropped |a_k| sum to a quarter of that. error() reports the value measured. Between the grazing node (mu = 0,
+/// where the layer is evaluated at a tenth of the next node's cosine) and the next, the table holds what the
+/// spline gives.
 ///
 /// Sampling: a lobe by the albedos at mu_i (the surface's, the tabulated reflection's and transmission's, the
 /// deltas'); for a tabulated lobe, t_o by inverting the exact integral of the spline of a_0 dmu/dt, then dphi by
@@ -256,16 +263,42 @@ public:
     /// tolerance in [1e-7, 0.5]; throws std::invalid_argument otherwise.
     template <class LayerReal>
     TabulatedBSDF(const LayeredSurface<LayerReal>& layer, Real tolerance) : tolerance_(check_tolerance(tolerance)) {
-        sides_[0] = tabulate(layer, tolerance);
+        sides_[0] = tabulate(std::vector<const LayeredSurface<LayerReal>*>{&layer}, {}, tolerance);
     }
     /// Two-sided: `from_above` lit from above, `from_below` the same layer turned over.
     template <class LayerReal>
     TabulatedBSDF(const LayeredSurface<LayerReal>& from_above, const LayeredSurface<LayerReal>& from_below,
                   Real tolerance)
         : tolerance_(check_tolerance(tolerance)) {
-        sides_[0] = tabulate(from_above, tolerance);
-        sides_[1] = tabulate(from_below, tolerance);
+        sides_[0] = tabulate(std::vector<const LayeredSurface<LayerReal>*>{&from_above}, {}, tolerance);
+        sides_[1] = tabulate(std::vector<const LayeredSurface<LayerReal>*>{&from_below}, {}, tolerance);
     }
+    /// Several channels (RGB, spectral samples) on one grid: one layer per channel, all with the same outer faces
+    /// and outputs (solve_spectral makes them), and their luminance weights (> 0; normalized to sum 1; equal when
+    /// empty; for linear sRGB, 0.2126, 0.7152, 0.0722). The luminance is tabulated beside all channels but the one
+    /// of largest weight, which follows from them; it drives sampling, and eval, pdf and sample without a `values`
+    /// argument answer for it. The grid and each pair's order serve every channel within the tolerance.
+    template <class LayerReal>
+    TabulatedBSDF(const std::vector<LayeredSurface<LayerReal>>& channels, Real tolerance, std::vector<Real> luminance = {})
+        : tolerance_(check_tolerance(tolerance)) {
+        const auto layers = channel_layers(channels);
+        sides_[0] = tabulate(layers, luminance_weights(std::move(luminance), layers.size()), tolerance);
+    }
+    /// Several channels, two-sided (the second vector: the same channels' layers turned over).
+    template <class LayerReal>
+    TabulatedBSDF(const std::vector<LayeredSurface<LayerReal>>& from_above,
+                  const std::vector<LayeredSurface<LayerReal>>& from_below, Real tolerance, std::vector<Real> luminance = {})
+        : tolerance_(check_tolerance(tolerance)) {
+        const auto above = channel_layers(from_above), below = channel_layers(from_below);
+        if (above.size() != below.size())
+            detail::fail_invalid_argument("stratum: TabulatedBSDF: as many channels from below as from above");
+        const std::vector<Real> w = luminance_weights(std::move(luminance), above.size());
+        sides_[0] = tabulate(above, w, tolerance);
+        sides_[1] = tabulate(below, w, tolerance);
+    }
+
+    /// The number of channels (1 for a table built from one layer).
+    int channels() const noexcept { return sides_[0]->channels; }
 
     bool two_sided() const noexcept { return sides_[1].has_value(); }
 
@@ -281,13 +314,15 @@ public:
     /// The interpolated series of f |wo.z| = sum_k a_k cos(k dphi) of the subsurface reflection (transmitted =
     /// false) or the transmission, for light arriving from above (from_below = false) at cosine mu_i and leaving at
     /// |cosine| mu_o (both in [0, 1]): writes a_0 .. a_{L-1} to out (room for max_order) and returns L (0 where
-    /// nothing is tabulated). At the grid's nodes these are the stored coefficients.
-    int coefficients(bool from_below, bool transmitted, Real mu_i, Real mu_o, Real* out) const noexcept {
+    /// nothing is tabulated). At the grid's nodes these are the stored coefficients. `channel`: one of channels(),
+    /// or -1 for the luminance (the one channel of a table built from one layer).
+    int coefficients(bool from_below, bool transmitted, Real mu_i, Real mu_o, Real* out, int channel = -1) const noexcept {
         const Side* s = from_below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
-        if (!s) return 0;
+        if (!s || channel >= s->channels) return 0;
         const detail::FourierTable<Real>& tab = transmitted ? s->transmission : s->reflection;
         if (tab.empty()) return 0;
-        return s->interpolate(tab, s->weights(detail::clamp_unit(mu_i)), s->weights(detail::clamp_unit(mu_o)), out);
+        const detail::SplineWeights<Real> si = s->weights(detail::clamp_unit(mu_i)), so = s->weights(detail::clamp_unit(mu_o));
+        return channel < 0 ? s->interpolate(tab, si, so, out) : s->channel_series(tab, si, so, channel, out);
     }
     /// The top's rough interface whose reflection the table keeps analytic (none for a smooth or index-matched top,
     /// or when the surface reflection was not requested).
@@ -319,6 +354,19 @@ public:
         const Real a = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo, false).value;
         const Real surface = (wo.z > 0 && s->surface) ? s->surface->brdf(wi, wo) : Real(0);
         return surface + a / mu_o;
+    }
+
+    /// Every channel's f(wi, wo) into values[0 .. channels()) (eval gives their luminance).
+    void eval(Vec3<Real> wi, Vec3<Real> wo, Real* values, TransportMode mode = TransportMode::importance) const noexcept {
+        if (mode == TransportMode::radiance) std::swap(wi, wo);
+        const int nc = channels();
+        for (int c = 0; c < nc; ++c) values[c] = 0;
+        const Side* s = side(wi, wo);
+        if (!s || !(wo.z != 0)) return;
+        const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
+        s->lobe_channels(wo.z > 0 ? s->reflection : s->transmission, wi, wo, values);
+        const Real surface = (wo.z > 0 && s->surface) ? s->surface->brdf(wi, wo) : Real(0);
+        for (int c = 0; c < nc; ++c) values[c] = surface + values[c] / mu_o;
     }
 
     /// The solid-angle density of sample(wi, ...) at wo (the deltas excluded: 0 there, as in RoughDielectric).
@@ -384,6 +432,32 @@ public:
         return out;
     }
 
+    /// As sample(), and every channel's value at the sample into values[0 .. channels()): f(wi, wo) as eval gives
+    /// it, or for a delta each channel's power fraction / |wo.z|. The weight of channel c is
+    /// values[c] |wo.z| / pdf.
+    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, Real* values,
+                            TransportMode mode = TransportMode::importance) const noexcept {
+        const BsdfSample<Real> out = sample(wi, u_lobe, u1, u2, mode);
+        const int nc = channels();
+        for (int c = 0; c < nc; ++c) values[c] = 0;
+        if (!out.valid()) return out;
+        if (!out.delta) {
+            eval(wi, out.wo, values, mode);
+            return out;
+        }
+        const Side* s = wi.z < 0 ? &*sides_[1] : &*sides_[0];
+        const Real mu_i = detail::clamp_unit(std::fabs(wi.z));
+        const detail::SplineWeights<Real> si = s->weights(mu_i);
+        const Real scale = (mode == TransportMode::radiance && !out.reflected ? s->radiance_factor() : Real(1)) /
+                           std::fabs(out.wo.z);
+        for (int c = 0; c < nc; ++c) {
+            const int row = nc > 1 ? c + 1 : 0;
+            values[c] = scale * (out.reflected ? (s->mirror ? s->mirror->reflectance(mu_i) : Real(0)) + s->beam(s->beam_reflected, si, row)
+                                               : s->beam(s->beam_transmitted, si, row));
+        }
+        return out;
+    }
+
     /// The albedo of the whole BSDF for light arriving at cosine mu (> 0: from above, < 0: from below), deltas
     /// included (what a white furnace measures of sample()): {reflectance, transmittance}; {0, 0} where the side is
     /// not tabulated.
@@ -415,15 +489,20 @@ private:
         std::optional<RoughDielectric<Real>> surface;  // the top's rough reflection (analytic)
         std::vector<Real> surface_albedo;              // its directional reflectance at the nodes (lobe choice)
         std::optional<SmoothDielectric<Real>> mirror;  // a smooth top's Fresnel reflection
-        std::vector<Real> beam_reflected, beam_transmitted;  // deltas between specular faces, at the nodes
+        // Deltas between specular faces at the nodes: [c n + j], c = 0 the luminance (or the one channel), then the
+        // channels.
+        std::vector<Real> beam_reflected, beam_transmitted;
         Real eta_above = 1, eta_below = 1;             // outside the top and below the bottom
         Real error = 0;
+        // Channels: their luminance weights, and the one not stored (it follows from the luminance and the others).
+        int channels = 1, derived = 0;
+        std::vector<Real> luminance;
 
         int n() const noexcept { return static_cast<int>(t.size()); }
         std::size_t bytes() const noexcept {
             const std::size_t reals = t.size() + jacobian.size() + reflection.coeffs.size() + reflection.cdf.size() +
                                       transmission.coeffs.size() + transmission.cdf.size() + surface_albedo.size() +
-                                      beam_reflected.size() + beam_transmitted.size();
+                                      beam_reflected.size() + beam_transmitted.size() + luminance.size();
             return sizeof(Real) * reals + sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size());
         }
         detail::SplineWeights<Real> weights(Real mu) const noexcept {
@@ -449,7 +528,7 @@ private:
         // weights of its parity; returns its length (c must hold kMaxOrder). Summing the coefficients first and the
         // series once is cheaper than a series per pair.
         int interpolate(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
-                        const detail::SplineWeights<Real>& so, Real* c) const noexcept {
+                        const detail::SplineWeights<Real>& so, Real* c, int series = 0) const noexcept {
             int order = 0;
             for (int a = 0; a < 4; ++a)
                 for (int b = 0; b < 4; ++b) {
@@ -457,7 +536,7 @@ private:
                     const int len = tab.order(p);
                     for (int k = order; k < len; ++k) c[k] = 0;
                     order = std::max(order, len);
-                    const Real* src = tab.pair(p);
+                    const Real* src = tab.pair(p, series);
                     const Real we = si.even[a] * so.even[b], wo = si.odd[a] * so.odd[b];
                     if (we == wo) {
                         for (int k = 0; k < len; ++k) c[k] += we * src[k];
@@ -491,6 +570,55 @@ private:
             return v;
         }
 
+        // The series of channel `channel` interpolated at (t_i, t_o) (see interpolate): a stored series, or the
+        // derived channel from the luminance and the others, (Y - sum_c w_c a_c) / w_derived.
+        int channel_series(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
+                           const detail::SplineWeights<Real>& so, int channel, Real* c) const noexcept {
+            if (channels == 1) return interpolate(tab, si, so, c);
+            if (channel != derived) return interpolate(tab, si, so, c, stored_series(channel));
+            const int order = interpolate(tab, si, so, c);
+            Real other[kMaxOrder];
+            for (int ch = 0; ch < channels; ++ch) {
+                if (ch == derived) continue;
+                const int len = interpolate(tab, si, so, other, stored_series(ch));
+                for (int k = 0; k < len; ++k) c[k] -= luminance[static_cast<std::size_t>(ch)] * other[k];
+            }
+            for (int k = 0; k < order; ++k) c[k] /= luminance[static_cast<std::size_t>(derived)];
+            return order;
+        }
+        int stored_series(int channel) const noexcept { return 1 + (channel < derived ? channel : channel - 1); }
+
+        // f |wo.z| of every channel (clamped to >= 0) into out: each stored series summed, the derived channel from
+        // their values (the relation is linear).
+        void lobe_channels(const detail::FourierTable<Real>& tab, Vec3<Real> wi, Vec3<Real> wo, Real* out) const noexcept {
+            for (int ch = 0; ch < channels; ++ch) out[ch] = 0;
+            if (tab.empty()) return;
+            const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
+            const detail::SplineWeights<Real> so = weights(detail::clamp_unit(std::fabs(wo.z)));
+            const Real x = cos_dphi(wi, wo);
+            Real c[kMaxOrder];
+            if (channels == 1) {
+                out[0] = detail::cosine_series(c, interpolate(tab, si, so, c), x);
+            } else {
+                Real rest = detail::cosine_series(c, interpolate(tab, si, so, c), x);  // the luminance
+                for (int ch = 0; ch < channels; ++ch) {
+                    if (ch == derived) continue;
+                    out[ch] = detail::cosine_series(c, interpolate(tab, si, so, c, stored_series(ch)), x);
+                    rest -= luminance[static_cast<std::size_t>(ch)] * out[ch];
+                }
+                out[derived] = rest / luminance[static_cast<std::size_t>(derived)];
+            }
+            for (int ch = 0; ch < channels; ++ch) out[ch] = out[ch] > 0 ? out[ch] : Real(0);
+        }
+
+        // The deltas' power fractions of channel `series` (0: the luminance or the one channel; c + 1: channel c).
+        Real beam(const std::vector<Real>& v, const detail::SplineWeights<Real>& si, int series) const noexcept {
+            if (v.empty()) return Real(0);
+            Real s = 0;
+            for (int a = 0; a < 4; ++a) s += si.even[a] * v[static_cast<std::size_t>(series * n() + si.first + a)];
+            return s > 0 ? s : Real(0);
+        }
+
         Albedos albedos(Real mu_i) const noexcept {
             Albedos al;
             const detail::SplineWeights<Real> si = weights(mu_i);
@@ -508,8 +636,8 @@ private:
             al.surface = surface ? interpolate(surface_albedo) : Real(0);
             al.reflection = lobe_albedo(reflection);
             al.transmission = lobe_albedo(transmission);
-            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + interpolate(beam_reflected);
-            al.straight = interpolate(beam_transmitted);
+            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + beam(beam_reflected, si, 0);
+            al.straight = beam(beam_transmitted, si, 0);
             al.total = al.surface + al.reflection + al.transmission + al.mirror + al.straight;
             return al;
         }
@@ -609,7 +737,37 @@ private:
     }
 
     template <class LayerReal>
-    static Side tabulate(const LayeredSurface<LayerReal>& layer, Real tolerance);
+    static Side tabulate(const std::vector<const LayeredSurface<LayerReal>*>& layers, const std::vector<Real>& luminance,
+                         Real tolerance);
+
+    // The layers of every channel (validated: the same faces), and the luminance weights (normalized to sum 1).
+    template <class LayerReal>
+    static std::vector<const LayeredSurface<LayerReal>*> channel_layers(const std::vector<LayeredSurface<LayerReal>>& layers) {
+        if (layers.empty()) detail::fail_invalid_argument("stratum: TabulatedBSDF: no channels");
+        std::vector<const LayeredSurface<LayerReal>*> out;
+        for (const LayeredSurface<LayerReal>& l : layers) {
+            const auto& a = layers.front();
+            const bool same = l.top().eta_above() == a.top().eta_above() && l.top().eta_below() == a.top().eta_below() &&
+                              l.bottom().eta_below() == a.bottom().eta_below() && l.top().rough() == a.top().rough() &&
+                              (!l.top().rough() || l.top().rough_interface()->sigma() == a.top().rough_interface()->sigma()) &&
+                              l.outputs() == a.outputs();
+            if (!same)
+                detail::fail_invalid_argument("stratum: TabulatedBSDF: the channels' layers must share their outer "
+                                              "faces (indices, top roughness) and their requested outputs");
+            out.push_back(&l);
+        }
+        return out;
+    }
+    static std::vector<Real> luminance_weights(std::vector<Real> w, std::size_t channels) {
+        if (w.empty()) w.assign(channels, Real(1));
+        if (w.size() != channels)
+            detail::fail_invalid_argument("stratum: TabulatedBSDF: " + std::to_string(w.size()) + " luminance weights for " +
+                                          std::to_string(channels) + " channels");
+        Real sum = 0;
+        for (Real x : w) sum += detail::require_open("TabulatedBSDF luminance weight", x, Real(0), std::numeric_limits<Real>::infinity());
+        for (Real& x : w) x /= sum;
+        return w;
+    }
 
     std::optional<Side> sides_[2];
     Real tolerance_;
@@ -690,23 +848,26 @@ std::vector<int> truncated_orders(const DenseLobe<L>& fine, L budget, int cap) {
     return orders;
 }
 
-// The packed table of the coarse grid's pairs, with each row's running integral of m = a_0 dmu/dt.
+// The packed table of the coarse grid's pairs for the given series (every other node of each `fine` lobe), each
+// pair with the order `orders` gives it, and each row's running integral of m = a_0 dmu/dt of series 0.
 template <class Real, class L>
-FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real>& jacobian, const DenseLobe<L>& fine,
-                              const std::vector<int>& orders) {
+FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real>& jacobian,
+                              const std::vector<const DenseLobe<L>*>& series, const std::vector<int>& orders) {
     FourierTable<Real> tab;
     const int n = static_cast<int>(t.size());
+    const std::uint32_t count = static_cast<std::uint32_t>(series.size());
+    tab.series = static_cast<int>(count);
     tab.offset.assign(orders.size() + 1, 0);
-    for (std::size_t p = 0; p < orders.size(); ++p) {
-        tab.offset[p + 1] = tab.offset[p] + static_cast<std::uint32_t>(orders[p]);
-        tab.max_order = std::max(tab.max_order, orders[p]);
-    }
-    if (tab.max_order == 0) return FourierTable<Real>{};
+    for (std::size_t p = 0; p < orders.size(); ++p) tab.offset[p + 1] = tab.offset[p] + count * static_cast<std::uint32_t>(orders[p]);
+    if (tab.offset.back() == 0) return FourierTable<Real>{};
     tab.coeffs.reserve(tab.offset.back());
     for (int i = 0; i < n; ++i)
         for (int o = 0; o < n; ++o)
-            for (int k = 0; k < orders[static_cast<std::size_t>(i * n + o)]; ++k)
-                tab.coeffs.push_back(static_cast<Real>(fine.pair(2 * i, 2 * o)[k]));
+            for (const DenseLobe<L>* lobe : series) {
+                const int len = orders[static_cast<std::size_t>(i * n + o)];
+                const L* a = lobe->pair(2 * i, 2 * o);
+                for (int k = 0; k < len; ++k) tab.coeffs.push_back(k < lobe->modes ? static_cast<Real>(a[k]) : Real(0));
+            }
     tab.cdf.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Real(0));
     for (int i = 0; i < n; ++i) {
         const std::size_t row = static_cast<std::size_t>(i) * static_cast<std::size_t>(n);
@@ -718,13 +879,37 @@ FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real
     return tab;
 }
 
+// sum_c w_c lobe_c (padded to the most modes): the luminance of several channels.
+template <class L, class Real>
+DenseLobe<L> weighted_sum(const std::vector<DenseLobe<L>>& lobes, const std::vector<Real>& weights) {
+    DenseLobe<L> out;
+    out.n = lobes.front().n;
+    for (const DenseLobe<L>& l : lobes) out.modes = std::max(out.modes, l.modes);
+    const std::size_t pairs = static_cast<std::size_t>(out.n) * static_cast<std::size_t>(out.n);
+    out.a.assign(pairs * static_cast<std::size_t>(out.modes), L(0));
+    for (std::size_t c = 0; c < lobes.size(); ++c)
+        for (std::size_t p = 0; p < pairs && lobes[c].modes > 0; ++p)
+            for (int k = 0; k < lobes[c].modes; ++k)
+                out.a[p * static_cast<std::size_t>(out.modes) + static_cast<std::size_t>(k)] +=
+                    static_cast<L>(weights[c]) * lobes[c].a[p * static_cast<std::size_t>(lobes[c].modes) + static_cast<std::size_t>(k)];
+    return out;
+}
+
 }  // namespace detail
 
 template <class Real>
 template <class LayerReal>
-typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const LayeredSurface<LayerReal>& layer, Real tolerance) {
+typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vector<const LayeredSurface<LayerReal>*>& layers,
+                                                                  const std::vector<Real>& luminance, Real tolerance) {
     using L = LayerReal;
+    const LayeredSurface<L>& layer = *layers.front();
+    const int channels = static_cast<int>(layers.size());
     Side s;
+    s.channels = channels;
+    if (channels > 1) {
+        s.luminance = luminance;
+        s.derived = static_cast<int>(std::max_element(luminance.begin(), luminance.end()) - luminance.begin());
+    }
     s.eta_above = static_cast<Real>(layer.top().eta_above());
     s.eta_below = static_cast<Real>(layer.bottom().eta_below());
     const bool surface = includes(layer.outputs(), LayerOutput::surface_reflection);
@@ -735,29 +920,45 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const LayeredSu
     } else if (surface) {
         s.mirror.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
     }
-    // Refine until the table of n nodes is within tolerance at the nodes of 2n - 1 (129 nodes at most).
-    detail::DenseLobe<L> fine[2];
+    // Refine until every channel's table of n nodes is within tolerance at the nodes of 2n - 1 (129 nodes at most).
+    // fine[w][c]: lobe w (reflection, transmission) of channel c on the finer grid; the luminance last.
+    std::vector<detail::DenseLobe<L>> fine[2];
     std::vector<int> orders[2];
-    int n = 9;
-    for (;; n = 2 * n - 1) {
+    for (int n = 9;; n = 2 * n - 1) {
         s.t = detail::grid_parameters<Real>(n);
-        detail::layer_lobes(layer, detail::grid_parameters<Real>(2 * n - 1), fine);
+        for (int w = 0; w < 2; ++w) fine[w].assign(static_cast<std::size_t>(channels), {});
+        for (int c = 0; c < channels; ++c) {
+            detail::DenseLobe<L> pair[2];
+            detail::layer_lobes(*layers[static_cast<std::size_t>(c)], detail::grid_parameters<Real>(2 * n - 1), pair);
+            for (int w = 0; w < 2; ++w) fine[w][static_cast<std::size_t>(c)] = std::move(pair[w]);
+        }
         L err = 0;
         for (int w = 0; w < 2; ++w) {
-            L scale = 0;  // the lobe's largest azimuthal mean of f |wi.z| |wo.z|
-            for (int i = 0; i < fine[w].n; ++i)
-                for (int o = 0; o < fine[w].n && fine[w].modes > 0; ++o)
-                    scale = std::fmax(scale, std::fabs(fine[w].pair(i, o)[0]) * detail::parameter_cosine(L(i) / L(fine[w].n - 1)));
-            orders[w] = detail::truncated_orders(fine[w], L(tolerance) * scale / 4, kMaxOrder);
-            if (scale > 0) err = std::fmax(err, detail::table_error(s.t, fine[w], orders[w]) / scale);
+            if (channels > 1) fine[w].push_back(detail::weighted_sum(fine[w], luminance));
+            orders[w].assign(static_cast<std::size_t>(n * n), 0);
+            for (const detail::DenseLobe<L>& f : fine[w]) {
+                L scale = 0;  // the lobe's largest azimuthal mean of f |wi.z| |wo.z|
+                for (int i = 0; i < f.n; ++i)
+                    for (int o = 0; o < f.n && f.modes > 0; ++o)
+                        scale = std::fmax(scale, std::fabs(f.pair(i, o)[0]) * detail::parameter_cosine(L(i) / L(f.n - 1)));
+                const std::vector<int> own = detail::truncated_orders(f, L(tolerance) * scale / 4, kMaxOrder);
+                if (scale > 0) err = std::fmax(err, detail::table_error(s.t, f, own) / scale);
+                for (std::size_t p = 0; p < own.size(); ++p) orders[w][p] = std::max(orders[w][p], own[p]);
+            }
         }
         s.error = static_cast<Real>(err);
         if (err <= L(tolerance) || n >= 129) break;
     }
     s.jacobian.resize(s.t.size());
     for (std::size_t j = 0; j < s.t.size(); ++j) s.jacobian[j] = detail::parameter_jacobian(s.t[j]);
-    s.reflection = detail::pack_table(s.t, s.jacobian, fine[0], orders[0]);
-    s.transmission = detail::pack_table(s.t, s.jacobian, fine[1], orders[1]);
+    for (int w = 0; w < 2; ++w) {
+        // Stored: the one channel; or the luminance, then every channel but the derived one.
+        std::vector<const detail::DenseLobe<L>*> series;
+        if (channels > 1) series.push_back(&fine[w].back());
+        for (int c = 0; c < channels; ++c)
+            if (channels == 1 || c != s.derived) series.push_back(&fine[w][static_cast<std::size_t>(c)]);
+        (w == 0 ? s.reflection : s.transmission) = detail::pack_table(s.t, s.jacobian, series, orders[w]);
+    }
     const std::size_t nodes = s.t.size();
     auto at = [&](std::size_t j) { return static_cast<L>(detail::parameter_cosine(s.t[j])); };
     if (s.surface) {  // for choosing lobes only; at mu = 0, where no light arrives, the next node's value
@@ -765,14 +966,28 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const LayeredSu
         for (std::size_t j = 1; j < nodes; ++j) s.surface_albedo[j] = static_cast<Real>(layer.reflectance(at(j)).surface);
         s.surface_albedo[0] = s.surface_albedo[1];
     }
-    if (layer.direct_reflectance(L(1)) > 0 || layer.direct_transmittance(L(1)) > 0 ||
-        layer.forward_peak_reflectance(L(1)) > 0 || layer.forward_peak_transmittance(L(1)) > 0) {
-        s.beam_reflected.resize(nodes);
-        s.beam_transmitted.resize(nodes);
-        for (std::size_t j = 0; j < nodes; ++j) {
-            s.beam_reflected[j] = static_cast<Real>(layer.direct_reflectance(at(j)) + layer.forward_peak_reflectance(at(j)));
-            s.beam_transmitted[j] =
-                static_cast<Real>(layer.direct_transmittance(at(j)) + layer.forward_peak_transmittance(at(j)));
+    bool beams = false;
+    for (const LayeredSurface<L>* l : layers)
+        beams = beams || l->direct_reflectance(L(1)) > 0 || l->direct_transmittance(L(1)) > 0 ||
+                l->forward_peak_reflectance(L(1)) > 0 || l->forward_peak_transmittance(L(1)) > 0;
+    if (beams) {
+        const std::size_t rows = channels > 1 ? static_cast<std::size_t>(channels) + 1 : 1;
+        s.beam_reflected.assign(rows * nodes, Real(0));
+        s.beam_transmitted.assign(rows * nodes, Real(0));
+        for (int c = 0; c < channels; ++c) {
+            const LayeredSurface<L>& l = *layers[static_cast<std::size_t>(c)];
+            const std::size_t row = channels > 1 ? static_cast<std::size_t>(c) + 1 : 0;
+            const Real w = channels > 1 ? luminance[static_cast<std::size_t>(c)] : Real(1);
+            for (std::size_t j = 0; j < nodes; ++j) {
+                const Real r = static_cast<Real>(l.direct_reflectance(at(j)) + l.forward_peak_reflectance(at(j)));
+                const Real t = static_cast<Real>(l.direct_transmittance(at(j)) + l.forward_peak_transmittance(at(j)));
+                s.beam_reflected[row * nodes + j] = r;
+                s.beam_transmitted[row * nodes + j] = t;
+                if (channels > 1) {
+                    s.beam_reflected[j] += w * r;
+                    s.beam_transmitted[j] += w * t;
+                }
+            }
         }
     }
     return s;
