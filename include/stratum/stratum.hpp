@@ -23,6 +23,7 @@
 #include "pbrt_bsdf.hpp"
 
 // Diffusion
+#include "bssrdf.hpp"
 #include "dipole.hpp"
 #include "lambert_w.hpp"
 #include "single_scattering.hpp"
