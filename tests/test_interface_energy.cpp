@@ -17,6 +17,10 @@
 using stratum::RoughDielectric;
 using stratum::Shadowing;
 using stratum::Vec3;
+using stratum::Lobe;
+using stratum::TransportMode;
+using stratum::fresnel_dielectric;
+using stratum::normalize;
 using stratum::gauss_legendre_half;
 
 namespace {
@@ -382,4 +386,43 @@ TEST_CASE("renderer sampling: sample() follows pdf() (chi-square) and pdf integr
                                        << " bins; failed fraction " << observed.back() / n << " vs 1 - int pdf "
                                        << 1 - total_p);
     }
+}
+
+TEST_CASE("renderer sampling restricted by Lobe: one direction alone, its density without the Fresnel choice") {
+    std::mt19937_64 rng(21);
+    const RoughDielectric<double> rd(0.3, 1.0, 1.4);
+    const Vec3<double> wi = dir(0.7, 0.0);
+    const Lobe only_reflection = Lobe::reflection | Lobe::glossy, only_transmission = Lobe::transmission | Lobe::glossy;
+    int reflected = 0, valid = 0;
+    const int n = 20000;
+    for (int i = 0; i < n; ++i) {
+        const auto s = rd.sample(wi, uniform(rng), uniform(rng), uniform(rng), TransportMode::importance, only_reflection);
+        if (!s.valid()) continue;
+        ++valid;
+        reflected += s.reflected ? 1 : 0;
+        CHECK(s.lobe() == only_reflection);
+        CHECK(s.pdf == doctest::Approx(rd.pdf(wi, s.wo, only_reflection)).epsilon(1e-12));
+        // Unrestricted, the same direction has the density times F at its facet: pdf(all) / pdf(reflection) = F.
+        const Vec3<double> h = normalize(wi + s.wo);
+        CHECK(rd.pdf(wi, s.wo) / s.pdf == doctest::Approx(fresnel_dielectric(dot(wi, h), 1.4)).epsilon(1e-12));
+    }
+    CHECK(reflected == valid);
+    CHECK(valid > n * 9 / 10);
+    for (int i = 0; i < 2000; ++i) {
+        const auto s = rd.sample(wi, uniform(rng), uniform(rng), uniform(rng), TransportMode::importance, only_transmission);
+        if (!s.valid()) continue;
+        CHECK(!s.reflected);
+        CHECK(rd.pdf(wi, s.wo, only_reflection) == 0);
+    }
+    // The wrong kind (specular for a rough interface) samples nothing; a smooth interface restricted to
+    // transmission refracts with probability 1 and weight 1 - F.
+    CHECK(!rd.sample(wi, 0.5, 0.5, 0.5, TransportMode::importance, Lobe::reflection | Lobe::specular).valid());
+    const RoughDielectric<double> smooth(0.0, 1.0, 1.4);
+    const auto t = smooth.sample(wi, 0.0, 0.5, 0.5, TransportMode::importance, Lobe::transmission | Lobe::specular);
+    REQUIRE(t.valid());
+    CHECK(!t.reflected);
+    CHECK(t.pdf == 1.0);
+    CHECK(t.value * std::fabs(t.wo.z) / t.pdf == doctest::Approx(1 - fresnel_dielectric(0.7, 1.4)).epsilon(1e-14));
+    CHECK(t.lobe() == (Lobe::transmission | Lobe::specular));
+    CHECK(!smooth.sample(wi, 0.5, 0.5, 0.5, TransportMode::importance, Lobe::reflection | Lobe::glossy).valid());
 }

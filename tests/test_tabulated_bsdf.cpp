@@ -456,3 +456,36 @@ TEST_CASE("TabulatedBSDF with channels: per-channel deltas between smooth faces,
     CHECK_THROWS_AS(TabulatedBSDF<double>(layers, 1e-2, {0.5, 0.5, 0.0}), std::invalid_argument);
     CHECK_THROWS_AS(TabulatedBSDF<double>(std::vector<LayeredSurface<double>>{}, 1e-2), std::invalid_argument);
 }
+
+TEST_CASE("TabulatedBSDF: sampling restricted by Lobe") {
+    // Transmission alone: every sample below, the density over the transmitted lobe alone (its integral 1 up to the
+    // refused samples), and the furnace gives the transmittance; specular alone on a rough layer: nothing.
+    const TabulatedBSDF<double> table(skin(8), 1e-2);
+    const Lobe only = Lobe::transmission | Lobe::glossy;
+    const Vec3<double> wi = direction(0.6, 0.3);
+    std::mt19937_64 rng(23);
+    const int n = 40000;
+    double sum = 0, sum2 = 0;
+    for (int i = 0; i < n; ++i) {
+        const BsdfSample<double> s = table.sample(wi, uniform(rng), uniform(rng), uniform(rng), TransportMode::importance, only);
+        if (!s.valid()) continue;
+        CHECK(s.wo.z < 0);
+        CHECK(s.pdf == doctest::Approx(table.pdf(wi, s.wo, TransportMode::importance, only)).epsilon(1e-12));
+        const double w = s.value * std::fabs(s.wo.z) / s.pdf;
+        sum += w;
+        sum2 += w * w;
+    }
+    const double mean = sum / n, se = std::sqrt((sum2 / n - mean * mean) / n);
+    CHECK(std::fabs(mean - table.albedo(0.6).transmittance) <= 4 * se + 1e-4);
+    CHECK(table.pdf(wi, direction(0.5, 1.0), TransportMode::importance, only) == 0);
+    const Quadrature<double> g = gauss_legendre_half<double>(48);
+    double total = 0;
+    for (std::size_t a = 0; a < g.size(); ++a)
+        for (std::size_t b = 0; b < g.size(); ++b) {
+            Vec3<double> wo = direction(g.nodes[a], 0.3 + pi + pi * g.nodes[b]);
+            wo.z = -wo.z;
+            total += 2 * pi * g.weights[a] * g.weights[b] * table.pdf(wi, wo, TransportMode::importance, only);
+        }
+    CHECK(total == doctest::Approx(1.0).epsilon(2e-3));
+    CHECK(!table.sample(wi, 0.5, 0.5, 0.5, TransportMode::importance, Lobe::reflection | Lobe::specular).valid());
+}

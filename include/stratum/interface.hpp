@@ -95,12 +95,32 @@ namespace stratum {
 /// The sampling density of wo given wi is the same in both modes; only the value (and so the weight) changes.
 enum class TransportMode { importance, radiance };
 
+/// The kinds of scattering (pbrt's BxDFType): a direction, reflection or transmission, and a kind, glossy (a
+/// density) or specular (a delta). Combine with |. Passed to sample and pdf, a mask restricts sampling to the lobes
+/// whose direction and kind it both holds (the density then is that of the restricted sampler); BsdfSample::lobe()
+/// says what a sample is.
+enum class Lobe : unsigned {
+    reflection = 1u << 0,
+    transmission = 1u << 1,
+    glossy = 1u << 2,
+    specular = 1u << 3,
+    all = (1u << 4) - 1,
+};
+STRATUM_HOST_DEVICE constexpr Lobe operator|(Lobe a, Lobe b) noexcept {
+    return static_cast<Lobe>(static_cast<unsigned>(a) | static_cast<unsigned>(b));
+}
+/// Whether `mask` holds the lobe of the given direction (reflected or not) and kind (delta: specular, else glossy).
+STRATUM_HOST_DEVICE constexpr bool allows(Lobe mask, bool reflected, bool delta) noexcept {
+    return (static_cast<unsigned>(mask) & static_cast<unsigned>(reflected ? Lobe::reflection : Lobe::transmission)) != 0 &&
+           (static_cast<unsigned>(mask) & static_cast<unsigned>(delta ? Lobe::specular : Lobe::glossy)) != 0;
+}
+
 /// Result of RoughDielectric::sample. value = f(wi, wo) (no cosine) and pdf its solid-angle density, so the
 /// Monte Carlo weight is value |wo.z| / pdf. A failed sample (direction into the wrong hemisphere, wi on the
 /// horizon) has pdf = 0 and value = 0 and must be discarded. A delta sample (index-matched or smooth interface)
-/// has delta = true, pdf = the probability of choosing that lobe and value = pdf / |wo.z| (the coefficient of
-/// the solid-angle delta in wo), so the weight value |wo.z| / pdf is exactly the lobe's power fraction per
-/// selection probability, i.e. 1:
+/// has delta = true, pdf = the probability of choosing that lobe and value = its power fraction / |wo.z| (the
+/// coefficient of the solid-angle delta in wo), so the weight value |wo.z| / pdf is the lobe's power fraction per
+/// selection probability, 1 when every lobe may be sampled:
 /// - index matched: wo = -wi, pdf = 1;
 /// - smooth (RoughDielectric::smooth()): mirror direction with pdf = F, or Snell direction with pdf = 1 - F
 ///   (F = fresnel_dielectric(|wi.z|, eta_t / eta_i); under total internal reflection the mirror, pdf = 1).
@@ -117,6 +137,10 @@ struct BsdfSample {
     bool reflected = false;
     bool delta = false;
     STRATUM_HOST_DEVICE bool valid() const noexcept { return pdf > 0; }
+    /// The sample's lobe: reflection or transmission, and specular (a delta) or glossy.
+    STRATUM_HOST_DEVICE Lobe lobe() const noexcept {
+        return (reflected ? Lobe::reflection : Lobe::transmission) | (delta ? Lobe::specular : Lobe::glossy);
+    }
 };
 
 namespace detail {
@@ -302,9 +326,13 @@ public:
     /// reflection), else the Snell direction, as a delta sample (u1, u2 unused).
     /// In TransportMode::radiance wi is the viewer's direction and the value is eval(wi, wo, radiance) (see
     /// TransportMode): a refracted sample's weight is then (eta_wi / eta_wo)^2 times the importance weight.
+    /// `allowed` restricts the lobes (Lobe): with reflection or transmission alone the other is never chosen (its
+    /// selection probability F or 1 - F becomes 1 for the one allowed); a lobe of the wrong kind (glossy for a
+    /// smooth interface, specular for a rough one) gives a failed sample.
     STRATUM_HOST_DEVICE BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2,
-                                                TransportMode mode = TransportMode::importance) const noexcept {
-        BsdfSample<Real> out = sample_importance(wi, u_lobe, u1, u2);
+                                                TransportMode mode = TransportMode::importance,
+                                                Lobe allowed = Lobe::all) const noexcept {
+        BsdfSample<Real> out = sample_importance(wi, u_lobe, u1, u2, allowed);
         if (mode == TransportMode::radiance && out.valid()) {
             if (out.delta) {
                 // The delta's coefficient scales as the BTDF: (eta_wi / eta_wo)^2 for a refraction.
@@ -318,12 +346,17 @@ public:
     }
 
 private:
-    STRATUM_HOST_DEVICE BsdfSample<Real> sample_importance(Vec3<Real> wi, Real u_lobe, Real u1, Real u2) const noexcept {
+    STRATUM_HOST_DEVICE BsdfSample<Real> sample_importance(Vec3<Real> wi, Real u_lobe, Real u1, Real u2,
+                                                           Lobe allowed) const noexcept {
         BsdfSample<Real> out;
         // The horizon, and subnormal cosines: a delta sample's value 1 / |wo.z| would overflow (found by
         // fuzz_pointwise at wi.z = 2e-315); such directions carry no energy.
         if (!(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return out;
+        const bool delta = index_matched() || smooth();
+        const bool may_reflect = allows(allowed, true, delta), may_transmit = allows(allowed, false, delta);
+        if (!may_reflect && !may_transmit) return out;
         if (index_matched()) {
+            if (!may_transmit) return out;
             out.wo = -wi;
             out.delta = true;
             out.pdf = Real(1);
@@ -332,7 +365,7 @@ private:
         }
         const bool below = wi.z < 0;
         const Real eta_i = below ? eta_below_ : eta_above_, eta_t = below ? eta_above_ : eta_below_;
-        if (smooth()) return sample_smooth(wi, eta_t / eta_i, u_lobe);
+        if (smooth()) return sample_smooth(wi, eta_t / eta_i, u_lobe, may_reflect, may_transmit);
         Vec3<Real> w = wi;
         if (below) w.z = -w.z;
         const Vec3<Real> h = distribution_.sample_visible_normal(w, u1, u2);
@@ -341,7 +374,7 @@ private:
         const Real eta = eta_t / eta_i;
         const Real F = fresnel_dielectric(c, eta);
         Vec3<Real> wo;
-        if (u_lobe < F) {
+        if (may_reflect && (u_lobe < F || !may_transmit)) {
             wo = 2 * c * h - w;
             if (!(wo.z > 0)) return out;
             out.reflected = true;
@@ -354,7 +387,7 @@ private:
         }
         if (below) wo.z = -wo.z;
         out.wo = wo;
-        out.pdf = pdf(wi, wo);
+        out.pdf = pdf(wi, wo, allowed);
         if (!(out.pdf > 0)) {
             out.pdf = 0;
             return out;
@@ -365,10 +398,14 @@ private:
 
 public:
     /// Solid-angle density of sample(wi, ...) at wo: visible-normal density times the selection
-    /// probability (F or 1 - F) times the Jacobian dh/dwo (1 / (4 (wo.h)) for reflection,
-    /// eta_o^2 |wo.h| / (eta_i (wi.h) + eta_o (wo.h))^2 for refraction). 0 for index matching and smooth (deltas).
-    STRATUM_HOST_DEVICE Real pdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+    /// probability (F or 1 - F; 1 when `allowed` holds that lobe alone, 0 when it does not hold it) times the
+    /// Jacobian dh/dwo (1 / (4 (wo.h)) for reflection, eta_o^2 |wo.h| / (eta_i (wi.h) + eta_o (wo.h))^2 for
+    /// refraction). 0 for index matching and smooth (deltas).
+    STRATUM_HOST_DEVICE Real pdf(Vec3<Real> wi, Vec3<Real> wo, Lobe allowed = Lobe::all) const noexcept {
         if (!(wi.z != 0) || !(wo.z != 0) || index_matched() || smooth()) return Real(0);
+        const bool may_reflect = allows(allowed, true, false), may_transmit = allows(allowed, false, false);
+        if (!(wi.z * wo.z > 0 ? may_reflect : may_transmit)) return Real(0);
+        const bool both = may_reflect && may_transmit;
         const bool below = wi.z < 0;
         if (below) {
             wi.z = -wi.z;
@@ -379,7 +416,7 @@ public:
             const Vec3<Real> h = normalize(wi + wo);
             const Real c = dot(wi, h);
             if (!(c > 0) || !(h.z > 0)) return Real(0);
-            return distribution_.visible_normal_pdf(wi, h) * fresnel_dielectric(c, eta_t / eta_i) / (4 * c);
+            return distribution_.visible_normal_pdf(wi, h) * (both ? fresnel_dielectric(c, eta_t / eta_i) : Real(1)) / (4 * c);
         }
         const Vec3<Real> v = eta_i * wi + eta_t * wo;
         const Real len2 = dot(v, v);
@@ -388,7 +425,7 @@ public:
         if (h.z < 0) h = -h;
         const Real ci = dot(wi, h), co = dot(wo, h);
         if (!(ci > 0) || !(co < 0)) return Real(0);
-        const Real T = 1 - fresnel_dielectric(ci, eta_t / eta_i);
+        const Real T = both ? 1 - fresnel_dielectric(ci, eta_t / eta_i) : Real(1);
         return distribution_.visible_normal_pdf(wi, h) * T * eta_t * eta_t * (-co) / len2;
     }
 
@@ -439,26 +476,30 @@ private:
     // The smooth interface's delta sample for wi (wi.z != 0) and eta = eta_t / eta_i: the mirror direction with
     // probability F (1 under total internal reflection), else the Snell direction (tangential component / eta,
     // normal cosine sqrt(mu^2 + eta^2 - 1) / eta on the other side, as SmoothDielectric::scatter). pdf is the
-    // selection probability and value = pdf / |wo.z|, so the weight value |wo.z| / pdf is 1 (BsdfSample).
-    STRATUM_HOST_DEVICE static BsdfSample<Real> sample_smooth(Vec3<Real> wi, Real eta, Real u_lobe) noexcept {
+    // selection probability and value = the power fraction / |wo.z|, so the weight value |wo.z| / pdf is 1
+    // (BsdfSample); with one direction allowed alone its probability is 1 (and the weight its power fraction).
+    STRATUM_HOST_DEVICE static BsdfSample<Real> sample_smooth(Vec3<Real> wi, Real eta, Real u_lobe, bool may_reflect,
+                                                              bool may_transmit) noexcept {
         BsdfSample<Real> out;
         out.delta = true;
         const Real mu = std::fmin(std::fabs(wi.z), Real(1));
         const Real F = fresnel_dielectric(mu, eta);
-        if (u_lobe < F || !(F < 1)) {
+        if (may_reflect && (u_lobe < F || !(F < 1) || !may_transmit)) {
+            if (!(F > 0)) return {};
             out.wo = {-wi.x, -wi.y, wi.z};
             out.reflected = true;
-            out.pdf = F;
+            out.pdf = may_transmit ? F : Real(1);
             out.value = F / std::fabs(wi.z);
             return out;
         }
+        if (!(F < 1)) return {};  // total internal reflection, and only transmission allowed
         // F < 1: no total internal reflection, so m2 > 0 (fresnel_dielectric returns 1 for m2 <= 0, eta != 1).
         const Real m2 = mu * mu + (eta - 1) * (eta + 1);
         const Real mt = std::fmin(std::sqrt(m2) / eta, Real(1));
         out.wo = normalize(Vec3<Real>{-wi.x / eta, -wi.y / eta, wi.z > 0 ? -mt : mt});
         if (!(std::fabs(out.wo.z) >= std::numeric_limits<Real>::min())) return {};  // refracted onto the horizon
-        out.pdf = 1 - F;
-        out.value = out.pdf / std::fabs(out.wo.z);
+        out.pdf = may_reflect ? 1 - F : Real(1);
+        out.value = (1 - F) / std::fabs(out.wo.z);
         return out;
     }
 

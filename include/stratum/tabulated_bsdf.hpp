@@ -370,11 +370,12 @@ public:
     }
 
     /// The solid-angle density of sample(wi, ...) at wo (the deltas excluded: 0 there, as in RoughDielectric).
-    /// The same in both transport modes.
-    Real pdf(Vec3<Real> wi, Vec3<Real> wo, TransportMode = TransportMode::importance) const noexcept {
+    /// The same in both transport modes; `allowed` as given to sample().
+    Real pdf(Vec3<Real> wi, Vec3<Real> wo, TransportMode = TransportMode::importance,
+             Lobe allowed = Lobe::all) const noexcept {
         const Side* s = side(wi, wo);
-        if (!s || !(wo.z != 0)) return Real(0);
-        const Albedos al = s->albedos(detail::clamp_unit(wi.z));
+        if (!s || !(wo.z != 0) || !allows(allowed, wo.z > 0, false)) return Real(0);
+        const Albedos al = s->albedos(detail::clamp_unit(wi.z), allowed);
         if (!(al.total > 0)) return Real(0);
         const Real p = s->lobe(wo.z > 0 ? s->reflection : s->transmission, wi, wo, true).density / al.total;
         if (wo.z < 0 || !s->surface || !(al.surface > 0)) return p;
@@ -385,14 +386,16 @@ public:
     /// dphi by u2 (its sign by u_lobe's place within the lobe's share), or (surface) a visible facet normal by u1
     /// and u2. value and pdf as eval and pdf give them; a delta sample has delta = true, pdf = its selection
     /// probability and value = its power fraction / |wo.z| (BsdfSample). A failed sample has pdf = 0.
-    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2,
-                            TransportMode mode = TransportMode::importance) const noexcept {
+    /// `allowed` restricts the lobes chosen (Lobe): the surface's and the tabulated reflection are glossy
+    /// reflection, the tabulated transmission glossy transmission, the mirror and the direct beam specular.
+    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, TransportMode mode = TransportMode::importance,
+                            Lobe allowed = Lobe::all) const noexcept {
         const bool below = wi.z < 0;
         const Side* s = below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
         if (!s || !finite(wi) || !(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return {};
         Vec3<Real> w = wi;
         if (below) w.z = -w.z;
-        const Albedos al = s->albedos(detail::clamp_unit(w.z));
+        const Albedos al = s->albedos(detail::clamp_unit(w.z), allowed);
         if (!(al.total > 0)) return {};
         const Real p[5] = {al.surface, al.reflection, al.transmission, al.mirror, al.straight};
         int lobe = 0, last = 4;
@@ -436,8 +439,8 @@ public:
     /// it, or for a delta each channel's power fraction / |wo.z|. The weight of channel c is
     /// values[c] |wo.z| / pdf.
     BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, Real* values,
-                            TransportMode mode = TransportMode::importance) const noexcept {
-        const BsdfSample<Real> out = sample(wi, u_lobe, u1, u2, mode);
+                            TransportMode mode = TransportMode::importance, Lobe allowed = Lobe::all) const noexcept {
+        const BsdfSample<Real> out = sample(wi, u_lobe, u1, u2, mode, allowed);
         const int nc = channels();
         for (int c = 0; c < nc; ++c) values[c] = 0;
         if (!out.valid()) return out;
@@ -619,7 +622,8 @@ private:
             return s > 0 ? s : Real(0);
         }
 
-        Albedos albedos(Real mu_i) const noexcept {
+        // The lobes' albedos at mu_i, those not in `allowed` 0.
+        Albedos albedos(Real mu_i, Lobe allowed = Lobe::all) const noexcept {
             Albedos al;
             const detail::SplineWeights<Real> si = weights(mu_i);
             auto interpolate = [&](const std::vector<Real>& v) {
@@ -638,6 +642,10 @@ private:
             al.transmission = lobe_albedo(transmission);
             al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + beam(beam_reflected, si, 0);
             al.straight = beam(beam_transmitted, si, 0);
+            if (!allows(allowed, true, false)) al.surface = al.reflection = 0;
+            if (!allows(allowed, false, false)) al.transmission = 0;
+            if (!allows(allowed, true, true)) al.mirror = 0;
+            if (!allows(allowed, false, true)) al.straight = 0;
             al.total = al.surface + al.reflection + al.transmission + al.mirror + al.straight;
             return al;
         }
