@@ -86,6 +86,12 @@ struct LayerOptions {
     /// automatic: as there for the top and bottom faces, flux_conserving for the interior faces of a stack
     /// (solve_stack), where only it keeps energy; pointwise there can create energy (README, known limitations).
     SpecularTransmission specular_transmission = SpecularTransmission::automatic;
+    /// A slab (or slabs joined by index-matched faces) under a specular top (smooth or index-matched) and over a
+    /// specular face or a Lambertian floor, where a face leads into a less dense medium: the ordinates are split at
+    /// the faces' critical cosines inside (docs/physics.md section 6), a Gauss rule on each panel (half of them on
+    /// the escape cone [mu_c, 1], the rest shared by the panels below), so that light that can leave and light that
+    /// is trapped are integrated apart. Off, or with a rough face: one half-range rule.
+    bool critical_split = true;
 };
 
 /// What a scene needs (see LayerOutput); the solver computes nothing else.
@@ -337,6 +343,25 @@ struct SlabModes {
     PhaseFourierMatrices<Real> phase;
 };
 
+/// Scattering conserves energy on the ordinates: sum_m w_m (P+ + P-)_nm = 2 for mode 0 (Stam's normalization). The
+/// half-range Gauss rule integrates the truncated phase function exactly (to rounding); a rule split at critical
+/// cosines (layer_quadrature) does not, and at albedo 1 the slab would then lose energy. Where a row's defect
+/// exceeds rounding it is moved onto the diagonal (forward scattering into the same direction), which keeps the
+/// matrix symmetric: P+_nn += (2 - sum) / w_n.
+template <class Real>
+void make_discretely_conservative(PhaseFourierMatrices<Real>& p, const Quadrature<Real>& q) {
+    if (p.modes < 1) return;
+    const std::size_t m = q.size();
+    const Real tolerance = Real(64) * Real(m) * std::numeric_limits<Real>::epsilon();
+    Real* same = p.same.data();  // mode 0: the first block
+    const Real* opposite = p.opposite.data();
+    for (std::size_t n = 0; n < m; ++n) {
+        Real sum = 0;
+        for (std::size_t j = 0; j < m; ++j) sum += q.weights[j] * (same[n * m + j] + opposite[n * m + j]);
+        if (std::fabs(sum / 2 - 1) > tolerance) same[n * m + n] += (2 - sum) / q.weights[n];
+    }
+}
+
 /// prepare_slab for a phase function given by its Legendre moments (Slab::with_phase_moments): the first
 /// L = 2M, delta-M scaled with f = chi_L when the medium scatters forwards (g > 0) and chi_L is given and positive
 /// (a forward peak beyond what the ordinates resolve), plainly truncated otherwise (moments beyond those given
@@ -351,15 +376,19 @@ SlabModes<Real> prepare_slab_from_moments(const Slab<Real>& s, const Quadrature<
     // As for Henyey-Greenstein (prepare_slab): delta-M only for a forward-scattering medium (g = chi_1 > 0).
     const Real f = delta_m && s.g() > Real(0) && given.size() > count ? given[count] : Real(0);
     if (!(f > 0)) {
-        return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
-                phase_fourier_matrices(chi, q.nodes, modes)};
+        SlabModes<Real> out{Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
+                            phase_fourier_matrices(chi, q.nodes, modes)};
+        make_discretely_conservative(out.phase, q);
+        return out;
     }
     // Wiscombe 1977 (docs/physics.md section 2): chi'_l = (chi_l - f) / (1 - f), 1 - Omega' = (1 - Omega) / (1 - f
     // Omega), tau' = (1 - f Omega) tau; 1 - f Omega = (1 - f) + f (1 - Omega) without cancellation.
     for (std::size_t l = 1; l < count; ++l) chi[l] = (chi[l] - f) / (Real(1) - f);
     const Real one_minus_f_omega = (Real(1) - f) + f * s.one_minus_albedo();
-    return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(), one_minus_f_omega * tau),
-            phase_fourier_matrices(chi, q.nodes, modes)};
+    SlabModes<Real> out{Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(), one_minus_f_omega * tau),
+                        phase_fourier_matrices(chi, q.nodes, modes)};
+    make_discretely_conservative(out.phase, q);
+    return out;
 }
 
 template <class Real>
@@ -375,11 +404,15 @@ SlabModes<Real> prepare_slab(const Slab<Real>& s, const Quadrature<Real>& q, int
         const Real one_minus_f_omega = (Real(1) - dm.f) + dm.f * s.one_minus_albedo();
         const Slab<Real> scaled = Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(),
                                                                     one_minus_f_omega * tau);
-        return {scaled, phase_fourier_matrices(dm.moments, q.nodes, modes)};
+        SlabModes<Real> out{scaled, phase_fourier_matrices(dm.moments, q.nodes, modes)};
+        make_discretely_conservative(out.phase, q);
+        return out;
     }
     const HenyeyGreenstein<Real> hg(s.g());
-    return {Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
-            phase_fourier_matrices(hg.legendre_moments(moments), q.nodes, modes)};
+    SlabModes<Real> out{Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
+                        phase_fourier_matrices(hg.legendre_moments(moments), q.nodes, modes)};
+    make_discretely_conservative(out.phase, q);
+    return out;
 }
 
 /// Largest entry of a slab's diffuse operators: R, and T without its unscattered diagonal e^{-tau/mu}.
@@ -524,7 +557,14 @@ PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<S
     const bool shortcut = request.tolerance > 0 && slabs.size() == 1 && !needs_transmitted(request.outputs) &&
                           !includes(request.outputs, LayerOutput::operators);
     for (const Slab<Real>& slab : slabs) {
-        stack.slabs.push_back(prepare_slab(slab, q, modes, options.delta_m, slab.optical_thickness()));
+        // A slab thinner than rounding on every ordinate (tau / mu_min below eps: e^{-tau/mu} is 1 and what it
+        // scatters below rounding of 1) is solved as tau = 0: its eigen-solution is then rounding noise of
+        // ~1e-16 rather than the O(tau) truth, and between two faces that trap light at some ordinates the
+        // adding amplifies that noise without bound (R + T = 5.4 at tau = 1e-20, 4 ordinates split at the
+        // critical cosine, tests/test_layer_inputs.cpp). The unscattered beam keeps the true thickness.
+        const Real tau = slab.optical_thickness() < std::numeric_limits<Real>::epsilon() * q.nodes.front()
+                             ? Real(0) : slab.optical_thickness();
+        stack.slabs.push_back(prepare_slab(slab, q, modes, options.delta_m, tau));
         if (shortcut) make_semi_infinite_if_opaque(stack.slabs.back(), q, request.tolerance);
     }
     return stack;
@@ -1134,6 +1174,49 @@ LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& to
     return LayeredSurface<Real>::solve(top, slabs, interior, bottom, options, request, {});
 }
 
+namespace detail {
+
+/// The layer's ordinates: the half-range Gauss rule of M points, or, for one slab (or slabs joined by index-matched
+/// faces) under a specular top and over a specular face or a Lambertian floor, with critical cosines inside
+/// (LayerOptions::critical_split), Gauss rules on the panels between them: the
+/// escape cone [mu_c, 1] of the larger critical cosine gets ceil(M / 2) points, the panels below share the rest
+/// (at least one each; with too few ordinates, no split). Nodes ascending, weights summing to 1.
+template <class Real>
+Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
+                                  const Boundary<Real>& bottom, const LayerOptions& options) {
+    const int m = options.ordinates;
+    bool eligible = options.critical_split && !top.rough() && !top.lambertian() && !bottom.rough();
+    for (const Boundary<Real>& b : interior) eligible = eligible && !b.rough() && b.eta_above() == b.eta_below();
+    if (!eligible) return gauss_legendre_half<Real>(m);
+    std::vector<Real> cuts;  // critical cosines inside the slab: sqrt(1 - (n_out / n_in)^2) where n_out < n_in
+    std::vector<Real> ratios{top.eta_above() / top.eta_below()};
+    if (!bottom.lambertian()) ratios.push_back(bottom.eta_below() / bottom.eta_above());
+    for (const Real r : ratios)
+        if (r < 1) cuts.push_back(std::sqrt((1 - r) * (1 + r)));
+    std::sort(cuts.begin(), cuts.end());
+    cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
+    const int panels = static_cast<int>(cuts.size()) + 1;
+    if (panels == 1 || m < panels) return gauss_legendre_half<Real>(m);
+    std::vector<Real> edges{Real(0)};
+    edges.insert(edges.end(), cuts.begin(), cuts.end());
+    edges.push_back(Real(1));
+    const int below = std::max(panels - 1, m / 2), top_points = m - below;  // below: shared by the lower panels
+    if (top_points < 1) return gauss_legendre_half<Real>(m);
+    Quadrature<Real> q;
+    for (int p = 0; p < panels; ++p) {
+        const int points = p == panels - 1 ? top_points : below / (panels - 1) + (p < below % (panels - 1) ? 1 : 0);
+        const Quadrature<Real> g = gauss_legendre_half<Real>(points);
+        const Real a = edges[static_cast<std::size_t>(p)], width = edges[static_cast<std::size_t>(p + 1)] - a;
+        for (std::size_t i = 0; i < g.size(); ++i) {
+            q.nodes.push_back(a + width * g.nodes[i]);
+            q.weights.push_back(width * g.weights[i]);
+        }
+    }
+    return q;
+}
+
+}  // namespace detail
+
 // The method (see the top of this file), in its steps:
 //  1. check the input and count the modes to solve (none for the surface reflection alone);
 //  2. the boundaries' operators on the ordinates, and the stack below the top prepared for the adding: delta-M
@@ -1158,7 +1241,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                           ? prepared.bottom_entry
                           : std::make_shared<const detail::EntryTransmittance<Real>>(bottom, Incidence::from_below);
     s.outputs_ = request.outputs;
-    s.q_ = gauss_legendre_half<Real>(options.ordinates);
+    s.q_ = detail::layer_quadrature(top, interior, bottom, options);
     s.incidence_ = request.incidence;
     if (includes(request.outputs, LayerOutput::surface_reflection))  // (an integral each for a rough face)
         for (const Real mu : s.incidence_) s.cached_surface_.push_back(top.hemispherical_reflectance(mu));
@@ -1419,7 +1502,10 @@ inline void require_same_options(const std::string& name, const LayerOptions& op
     if (options.specular_transmission != reference.specular_transmission)
         differ("specular_transmission", static_cast<long long>(options.specular_transmission),
                static_cast<long long>(reference.specular_transmission));
+    if (options.critical_split != reference.critical_split)
+        differ("critical_split", options.critical_split, reference.critical_split);
 }
+
 
 }  // namespace detail
 
