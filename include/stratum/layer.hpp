@@ -88,9 +88,9 @@ struct LayerOptions {
     SpecularTransmission specular_transmission = SpecularTransmission::automatic;
     /// A slab (or slabs joined by index-matched faces) under a specular top (smooth or index-matched) and over a
     /// specular face or a Lambertian floor, where a face leads into a less dense medium: the ordinates are split at
-    /// the faces' critical cosines inside (docs/physics.md section 6), a Gauss rule on each panel (half of them on
-    /// the escape cone [mu_c, 1], the rest shared by the panels below), so that light that can leave and light that
-    /// is trapped are integrated apart. Off, or with a rough face: one half-range rule.
+    /// the faces' critical cosines inside (docs/physics.md section 6), a Gauss rule on each panel (see
+    /// detail::layer_quadrature for how the points are shared), so that light that can leave and light that is
+    /// trapped are integrated apart. Off, or with a rough face: one half-range rule.
     bool critical_split = true;
 };
 
@@ -1178,9 +1178,9 @@ namespace detail {
 
 /// The layer's ordinates: the half-range Gauss rule of M points, or, for one slab (or slabs joined by index-matched
 /// faces) under a specular top and over a specular face or a Lambertian floor, with critical cosines inside
-/// (LayerOptions::critical_split), Gauss rules on the panels between them: the
-/// escape cone [mu_c, 1] of the larger critical cosine gets ceil(M / 2) points, the panels below share the rest
-/// (at least one each; with too few ordinates, no split). Nodes ascending, weights summing to 1.
+/// (LayerOptions::critical_split), Gauss rules on the panels between them: the panels below the larger critical
+/// cosine mu_c share min(M/2, ceil(M mu_c)) points (at least one each), the escape cone [mu_c, 1] gets the rest
+/// (with too few ordinates, no split). Nodes ascending, weights summing to 1.
 template <class Real>
 Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                   const Boundary<Real>& bottom, const LayerOptions& options) {
@@ -1200,7 +1200,10 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     std::vector<Real> edges{Real(0)};
     edges.insert(edges.end(), cuts.begin(), cuts.end());
     edges.push_back(Real(1));
-    const int below = std::max(panels - 1, m / 2), top_points = m - below;  // below: shared by the lower panels
+    // The lower panels share min(M/2, ceil(M mu_c)) points (at least one each): half when the trapped cone is wide,
+    // few when it is narrow (nearly matched indices), where the escape cone needs them.
+    const int below = std::max(panels - 1, std::min(m / 2, static_cast<int>(std::ceil(Real(m) * cuts.back()))));
+    const int top_points = m - below;
     if (top_points < 1) return gauss_legendre_half<Real>(m);
     Quadrature<Real> q;
     for (int p = 0; p < panels; ++p) {
