@@ -118,6 +118,54 @@ void layer_tolerance() {
     std::printf("| ambient only | - | 1 | - | - | %.1f |\n", t_amb);
 }
 
+// ---- Layer solver: smooth Fresnel faces, one rule against the split at the critical cosine ------------------
+void layer_smooth_faces() {
+    // Prahl's adding-doubling at N = 512: tests/data/adding_doubling_reference.txt (provenance in its header).
+    struct Reference {
+        double n, albedo, g, tau, mu0, r, t;
+    };
+    std::vector<Reference> refs;
+    std::FILE* file = std::fopen(STRATUM_TEST_DATA_DIR "/adding_doubling_reference.txt", "r");
+    if (!file) return;
+    char line[512];
+    while (std::fgets(line, sizeof line, file)) {
+        Reference x{};
+        if (line[0] != '#' && std::sscanf(line, "%lf %lf %lf %lf %lf %lf %lf", &x.n, &x.albedo, &x.g, &x.tau, &x.mu0, &x.r,
+                                          &x.t) == 7)
+            refs.push_back(x);
+    }
+    std::fclose(file);
+    std::printf("\n## Layer solver: smooth Fresnel faces\n\nSlabs between smooth faces in air against Prahl's converged "
+                "adding-doubling (tests/data/adding_doubling_reference.txt: %zu slabs, n 1.4 and 1.5, albedo 0.5 to 1, "
+                "g 0 to 0.9, tau 1 to 16, normal incidence and one at mu0 = 0.5): the worst |R - ref| and |T - ref| "
+                "(reflectance and transmittance with the specular reflection and the unscattered beam, mode 0), "
+                "with the ordinates split at the critical cosines (`LayerOptions::critical_split`, the default) and with "
+                "one half-range rule. Time: the first slab (n 1.4, albedo 0.9, g 0.8, tau 1), solve and reflectance, "
+                "split.\n\n",
+                refs.size());
+    std::printf("| M | split: R | split: T | one rule: R | one rule: T | time (ms) |\n|---|---|---|---|---|---|\n");
+    stratum::LayerRequest<double> request;
+    request.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
+    auto solve = [&](const Reference& x, int m, bool split) {
+        stratum::LayerOptions o;
+        o.ordinates = m;
+        o.critical_split = split;
+        return stratum::solve_layer(stratum::Slab<double>(x.albedo, x.g, x.tau), stratum::SmoothDielectric<double>(1.0, x.n),
+                                    stratum::SmoothDielectric<double>(x.n, 1.0), o, request);
+    };
+    for (int m : {8, 12, 16, 24, 32, 48, 64}) {
+        double worst[2][2] = {{0, 0}, {0, 0}};  // [split][R, T]
+        for (int split = 0; split < 2; ++split)
+            for (const Reference& x : refs) {
+                const auto layer = solve(x, m, split == 1);
+                worst[split][0] = std::max(worst[split][0], std::fabs(layer.reflectance(x.mu0).total() - x.r));
+                worst[split][1] = std::max(worst[split][1], std::fabs(layer.transmittance(x.mu0) - x.t));
+            }
+        const double t = median_ms([&] { (void)solve(refs.front(), m, true).reflectance(1.0); });
+        std::printf("| %d | %.1e | %.1e | %.1e | %.1e | %.3f |\n", m, worst[1][0], worst[1][1], worst[0][0], worst[0][1], t);
+    }
+}
+
 // ---- Tabulated BSDF: the table's size, build time and error against its tolerance ---------------------------
 void tabulated_bsdf_tolerance() {
     stratum::LayerOptions o;
@@ -185,6 +233,7 @@ int main() {
     stratum_accuracy::report_interface_operators();
     layer_ordinates();
     layer_tolerance();
+    layer_smooth_faces();
     tabulated_bsdf_tolerance();
     stratum_accuracy::report_dipole();
     return 0;

@@ -154,3 +154,25 @@ void BM_layer_eval_reflectance(benchmark::State& state) {
     state.SetLabel(state.range(1) == 1 ? "precomputed incidence" : "on the fly");
 }
 BENCHMARK(BM_layer_eval_reflectance)->Args({16, 0})->Args({16, 1})->Unit(benchmark::kMicrosecond);
+
+namespace {
+
+// A slab between smooth Fresnel faces (n 1 | 1.4 | 1, albedo 0.9, g 0.8, tau 1), reflectance and transmittance
+// at normal incidence (mode 0), with the ordinates split at the critical cosine (default) and with one
+// half-range rule: accuracy against Prahl's converged adding-doubling in docs/accuracy.md.
+void BM_layer_fresnel_slab_fluxes(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    options.critical_split = state.range(1) != 0;
+    stratum::LayerRequest<Real> request;
+    request.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
+    for (auto _ : state) {
+        const auto layer = stratum::solve_layer(stratum::Slab<Real>(0.9, 0.8, 1.0), stratum::SmoothDielectric<Real>(1.0, 1.4),
+                                                stratum::SmoothDielectric<Real>(1.4, 1.0), options, request);
+        benchmark::DoNotOptimize(layer.reflectance(1.0).total() + layer.transmittance(1.0));
+    }
+}
+BENCHMARK(BM_layer_fresnel_slab_fluxes)->Args({8, 1})->Args({16, 1})->Args({24, 1})->Args({32, 1})->Args({16, 0})->Args({32, 0})
+    ->Unit(benchmark::kMicrosecond);
+
+}  // namespace
