@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <string>
 #include <limits>
 #include <vector>
 
@@ -223,6 +224,198 @@ void tabulated_bsdf_tolerance() {
     }
 }
 
+// ---- Pareto fronts: every knob combination's error against its time ------------------------------------------
+struct Run {
+    std::string knobs;
+    double error, ms;
+    bool is_default;
+};
+
+// The runs no other run beats in both error and time, fastest first.
+std::vector<Run> pareto_front(std::vector<Run> runs) {
+    std::sort(runs.begin(), runs.end(), [](const Run& a, const Run& b) { return a.ms < b.ms || (a.ms == b.ms && a.error < b.error); });
+    std::vector<Run> front;
+    for (const Run& r : runs)
+        if (front.empty() || r.error < front.back().error) front.push_back(r);
+    return front;
+}
+
+// A log-log scatter: every run (grey), the front (blue line), the default settings (red ring).
+void write_pareto_svg(const std::string& path, const std::string& title, const std::vector<Run>& runs) {
+    const std::vector<Run> front = pareto_front(runs);
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    for (const Run& r : runs) {
+        if (!(r.error > 0) || !(r.ms > 0)) continue;
+        x0 = std::min(x0, std::log10(r.ms)), x1 = std::max(x1, std::log10(r.ms));
+        y0 = std::min(y0, std::log10(r.error)), y1 = std::max(y1, std::log10(r.error));
+    }
+    x0 = std::floor(x0), x1 = std::ceil(x1), y0 = std::floor(y0), y1 = std::ceil(y1);
+    if (!(x1 > x0)) x1 = x0 + 1;
+    if (!(y1 > y0)) y1 = y0 + 1;
+    const double w = 640, h = 420, l = 70, r = 20, t = 40, b = 50;
+    auto px = [&](double ms) { return l + (std::log10(ms) - x0) / (x1 - x0) * (w - l - r); };
+    auto py = [&](double e) { return h - b - (std::log10(e) - y0) / (y1 - y0) * (h - t - b); };
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (!f) return;
+    std::fprintf(f, "<svg xmlns='http://www.w3.org/2000/svg' width='%g' height='%g' font-family='sans-serif' font-size='12'>\n"
+                    "<rect width='100%%' height='100%%' fill='white'/>\n<text x='%g' y='22' text-anchor='middle' font-size='14'>%s</text>\n"
+                    "<text x='%g' y='%g' text-anchor='middle'>time (ms)</text>\n"
+                    "<text x='16' y='%g' text-anchor='middle' transform='rotate(-90 16 %g)'>error</text>\n"
+                    "<rect x='%g' y='%g' width='%g' height='%g' fill='none' stroke='black'/>\n",
+                 w, h, w / 2, title.c_str(), (l + w - r) / 2, h - 12, (t + h - b) / 2, (t + h - b) / 2, l, t, w - l - r, h - t - b);
+    for (double e = x0; e <= x1; ++e)
+        std::fprintf(f, "<text x='%g' y='%g' text-anchor='middle'>1e%g</text>\n", px(std::pow(10.0, e)), h - b + 16, e);
+    for (double e = y0; e <= y1; ++e)
+        std::fprintf(f, "<text x='%g' y='%g' text-anchor='end'>1e%g</text>\n", l - 6, py(std::pow(10.0, e)) + 4, e);
+    for (const Run& run : runs)
+        if (run.error > 0 && run.ms > 0)
+            std::fprintf(f, "<circle cx='%.1f' cy='%.1f' r='3' fill='#999999'/>\n", px(run.ms), py(run.error));
+    std::fprintf(f, "<polyline fill='none' stroke='#1f77b4' stroke-width='1.5' points='");
+    for (const Run& run : front)
+        if (run.error > 0 && run.ms > 0) std::fprintf(f, "%.1f,%.1f ", px(run.ms), py(run.error));
+    std::fprintf(f, "'/>\n");
+    for (const Run& run : runs)
+        if (run.is_default && run.error > 0 && run.ms > 0)
+            std::fprintf(f, "<circle cx='%.1f' cy='%.1f' r='7' fill='none' stroke='#d62728' stroke-width='2'/>\n",
+                         px(run.ms), py(run.error));
+    std::fprintf(f, "<text x='%g' y='%g' fill='#1f77b4'>Pareto front</text>\n<text x='%g' y='%g' fill='#d62728'>default "
+                    "settings</text>\n<text x='%g' y='%g' fill='#999999'>every combination</text>\n</svg>\n",
+                 w - r - 150, t + 16, w - r - 150, t + 32, w - r - 150, t + 48);
+    std::fclose(f);
+}
+
+void print_front(const char* name, const char* svg, const std::vector<Run>& runs) {
+    const std::vector<Run> front = pareto_front(runs);
+    write_pareto_svg(std::string(STRATUM_DOCS_DIR) + "/" + svg, name, runs);
+    std::printf("\n![%s](%s)\n\n| settings | error | time (ms) | on the front | default |\n|---|---|---|---|---|\n", name, svg);
+    std::vector<Run> sorted = runs;
+    std::sort(sorted.begin(), sorted.end(), [](const Run& a, const Run& b) { return a.ms < b.ms; });
+    for (const Run& r : sorted) {
+        const bool on = std::any_of(front.begin(), front.end(), [&](const Run& f) { return f.knobs == r.knobs; });
+        std::printf("| %s | %.1e | %.3g | %s | %s |\n", r.knobs.c_str(), r.error, r.ms, on ? "yes" : "", r.is_default ? "yes" : "");
+    }
+}
+
+void pareto_fronts() {
+    std::printf("\n## Pareto fronts: error against time for every combination of knobs\n\nEach point is one combination "
+                "of the solver's knobs; the front joins those that no other combination beats in both error and time, "
+                "and the ring marks the default settings (`LayerOptions{}` and the default request, M = 16). Times are "
+                "processor times of the solve (and, where stated, the evaluation), best of 3.\n");
+    using stratum::LayerOutput;
+    // 1. Stam's skin layer: ordinates, a request tolerance, delta-M; error as in "Layer solver: ordinates".
+    {
+        const stratum::RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+        const auto slab = stratum::Slab<double>::from_transparency(0.9, 0.8, 0.5);
+        stratum::LayerOptions o48;
+        o48.ordinates = 48;
+        const SkinProbe ref = probe(stratum::solve_layer(slab, top, bottom, o48));
+        std::vector<Run> runs;
+        for (int m : {4, 8, 12, 16, 24, 32})
+            for (double tol : {0.0, 1e-2, 1e-3})
+                for (bool dm : {true, false}) {
+                    stratum::LayerOptions o;
+                    o.ordinates = m;
+                    o.delta_m = dm;
+                    stratum::LayerRequest<double> r;
+                    r.tolerance = tol;
+                    stratum::LayeredSurface<double> layer = stratum::solve_layer(slab, top, bottom, o, r);
+                    const double t = median_ms([&] { layer = stratum::solve_layer(slab, top, bottom, o, r); }, 3);
+                    const SkinProbe p = probe(layer);
+                    const double e = std::max({max_relative(p.reflectance, ref.reflectance, 3),
+                                               max_relative(p.transmittance, ref.transmittance, 3),
+                                               max_relative(p.brdf, ref.brdf, 4), max_relative(p.btdf, ref.btdf, 4)});
+                    char k[96];
+                    std::snprintf(k, sizeof k, "M = %d, tolerance %g, delta-M %s", m, tol, dm ? "on" : "off");
+                    runs.push_back({k, e, t, m == 16 && tol == 0 && dm});
+                }
+        std::printf("\n### Stam's skin layer\n\nError: the largest relative difference from M = 48 over the subsurface "
+                    "reflectance and transmittance at mu0 = 1, 0.7, 0.3 and r_s, t_s at 4 directions (mu0 = 0.8), all "
+                    "outputs solved. Knobs: ordinates M, the request's tolerance (modes skipped), delta-M.\n");
+        print_front("Stam's skin layer", "pareto_skin.svg", runs);
+    }
+    // 2. A smooth-faced tissue slab: ordinates, the critical split, delta-M; fluxes against adding-doubling.
+    {
+        struct Reference {
+            double n, albedo, g, tau, mu0, r, t;
+        };
+        std::vector<Reference> refs;
+        if (std::FILE* file = std::fopen(STRATUM_TEST_DATA_DIR "/adding_doubling_reference.txt", "r")) {
+            char line[512];
+            while (std::fgets(line, sizeof line, file)) {
+                Reference x{};
+                if (line[0] != '#' && std::sscanf(line, "%lf %lf %lf %lf %lf %lf %lf", &x.n, &x.albedo, &x.g, &x.tau, &x.mu0,
+                                                  &x.r, &x.t) == 7)
+                    refs.push_back(x);
+            }
+            std::fclose(file);
+        }
+        stratum::LayerRequest<double> request;
+        request.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+        std::vector<Run> runs;
+        for (int m : {4, 6, 8, 12, 16, 24, 32, 48, 64})
+            for (bool split : {true, false})
+                for (bool dm : {true, false}) {
+                    stratum::LayerOptions o;
+                    o.ordinates = m;
+                    o.critical_split = split;
+                    o.delta_m = dm;
+                    auto solve = [&](const Reference& x) {
+                        return stratum::solve_layer(stratum::Slab<double>(x.albedo, x.g, x.tau),
+                                                    stratum::SmoothDielectric<double>(1.0, x.n),
+                                                    stratum::SmoothDielectric<double>(x.n, 1.0), o, request);
+                    };
+                    double e = 0;
+                    for (const Reference& x : refs) {
+                        const auto layer = solve(x);
+                        e = std::max({e, std::fabs(layer.reflectance(x.mu0).total() - x.r), std::fabs(layer.transmittance(x.mu0) - x.t)});
+                    }
+                    const double t = median_ms([&] { (void)solve(refs.front()).reflectance(1.0); }, 3);
+                    char k[96];
+                    std::snprintf(k, sizeof k, "M = %d, split %s, delta-M %s", m, split ? "on" : "off", dm ? "on" : "off");
+                    runs.push_back({k, e, t, m == 16 && split && dm});
+                }
+        std::printf("\n### A smooth-faced tissue slab\n\nError: the largest absolute difference in reflectance or "
+                    "transmittance from Prahl's converged adding-doubling over its 13 slabs "
+                    "(tests/data/adding_doubling_reference.txt); time: one slab (n 1.4, albedo 0.9, g 0.8, tau 1), "
+                    "fluxes only. Knobs: ordinates M, the critical split, delta-M.\n");
+        print_front("Smooth-faced tissue slab", "pareto_smooth_slab.svg", runs);
+    }
+    // 3. DISORT test problem 1 (van de Hulst's isotropic slab): tau = 1, albedo 0.99, beam at mu0 = 0.1.
+    {
+        const stratum::Slab<double> slab(0.99, 0.0, 1.0);
+        const auto matched = stratum::Boundary<double>::index_matched();
+        stratum::LayerOptions o128;
+        o128.ordinates = 128;
+        stratum::LayerRequest<double> flux;
+        flux.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+        const auto ref = stratum::solve_layer(slab, matched, matched, o128, flux);
+        const double r_ref = ref.reflectance(0.1).total(), t_ref = ref.transmittance(0.1);
+        std::vector<Run> runs;
+        for (int m : {2, 3, 4, 6, 8, 12, 16, 24, 32})
+            for (bool fluxes_only : {true, false}) {
+                stratum::LayerOptions o;
+                o.ordinates = m;
+                stratum::LayerRequest<double> r;
+                if (fluxes_only) r = flux;
+                stratum::LayeredSurface<double> layer = stratum::solve_layer(slab, matched, matched, o, r);
+                const double t = median_ms([&] {
+                    layer = stratum::solve_layer(slab, matched, matched, o, r);
+                    (void)layer.reflectance(0.1);
+                }, 3);
+                const double e = std::max(std::fabs(layer.reflectance(0.1).total() - r_ref) / r_ref,
+                                          std::fabs(layer.transmittance(0.1) - t_ref) / t_ref);
+                char k[96];
+                std::snprintf(k, sizeof k, "M = %d, %s", m, fluxes_only ? "fluxes only (mode 0)" : "all outputs");
+                runs.push_back({k, e, t, m == 16 && !fluxes_only});
+            }
+        std::printf("\n### DISORT test problem 1 (van de Hulst, Table 12)\n\nAn isotropic slab (tau = 1, albedo 0.99) "
+                    "lit at mu0 = 0.1, index-matched faces (tests/test_slab.cpp checks the solver against DISORT's listed "
+                    "values). Error: the largest relative difference of the reflected and transmitted fluxes from M = 128. "
+                    "Knobs: ordinates M, the request (fluxes only, mode 0, or everything).\n");
+        print_front("DISORT test problem 1", "pareto_disort1.svg", runs);
+    }
+}
+
 }  // namespace
 
 int main() {
@@ -235,6 +428,7 @@ int main() {
     layer_tolerance();
     layer_smooth_faces();
     tabulated_bsdf_tolerance();
+    pareto_fronts();
     stratum_accuracy::report_dipole();
     return 0;
 }
