@@ -254,7 +254,9 @@ struct FourierTable {
 /// Sides: built from one layer, the BSDF is one-sided (light from above, wi.z > 0; two_sided() is false, and
 /// wi.z < 0 gives 0 and invalid samples). Built from two, the second is the layer turned over (solved with its
 /// bottom face first and the indices swapped) and answers for light from below: all four combinations of sides.
-/// Evaluation is noexcept, allocation-free and const (thread-safe); degenerate directions give 0.
+/// Evaluation is noexcept, allocation-free and const (thread-safe); degenerate directions (NaN or infinite
+/// components, on the horizon) give 0 and invalid samples. Directions are expected to be unit vectors and are not
+/// normalized: a finite non-unit vector gives finite values >= 0 that mean nothing in particular.
 template <class Real = double>
 class TabulatedBSDF {
 public:

@@ -61,6 +61,14 @@ void rough_dielectric(Input& in) {
             require(a.reflectance >= 0 && a.transmittance >= 0 && a.reflectance + a.transmittance <= 1 + 1e-6,
                     "RoughDielectric::hemispherical_totals in [0, 1]");
         }
+        // Sampling restricted by a lobe mask (read last, so that earlier corpus inputs keep their meaning).
+        const auto mask = static_cast<stratum::Lobe>(in.byte() & 15);
+        const auto m = face.sample(wi, unit(in), unit(in), unit(in), stratum::TransportMode::importance, mask);
+        require(finite_nonnegative(face.pdf(wi, wo, mask)), "RoughDielectric::pdf with a mask finite and >= 0");
+        if (m.valid()) {
+            require(std::isfinite(m.pdf) && m.pdf > 0 && finite_nonnegative(m.value), "masked sample finite");
+            require(stratum::allows(mask, m.reflected, m.delta), "a masked sample's lobe is allowed");
+        }
     } catch (const std::invalid_argument&) {
     }
 }
