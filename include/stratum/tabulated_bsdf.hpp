@@ -415,11 +415,20 @@ public:
             out.value = p[lobe] / std::fabs(out.wo.z);
             if (mode == TransportMode::radiance && !out.reflected) out.value *= s->radiance_factor();
         } else {
-            out.wo = lobe == 0 ? s->sample_surface(w, u1, u2) : s->sample_lobe(lobe == 1, w, u, u1, u2);
-            if (!(out.wo.z != 0)) return {};
-            // value and pdf as eval and pdf give them, computed once (in the side's frame)
+            // value and pdf as eval and pdf give them, computed once (in the side's frame): a tabulated lobe's
+            // from the series its sampler interpolated, the surface lobe's with the tabulated reflection there
+            LobeValue v;
+            if (lobe == 0) {
+                out.wo = s->sample_surface(w, u1, u2);
+                if (!(out.wo.z != 0)) return {};
+                v = s->lobe(s->reflection, w, out.wo, true);
+            } else {
+                const typename Side::LobeSample ls = s->sample_lobe(lobe == 1, w, u, u1, u2);
+                out.wo = ls.wo;
+                v = ls.at;
+                if (!(out.wo.z != 0)) return {};
+            }
             out.reflected = out.wo.z > 0;
-            const LobeValue v = s->lobe(out.reflected ? s->reflection : s->transmission, w, out.wo, true);
             out.pdf = v.density / al.total;
             out.value = v.value / detail::clamp_unit(std::fabs(out.wo.z));
             if (out.reflected && s->surface) {
@@ -564,15 +573,19 @@ private:
             const Real g = detail::cosine_series(c, order, cos_dphi(wi, wo));
             LobeValue v;
             v.value = g > 0 ? g : Real(0);
-            if (!density || !(order > 0 && c[0] > 0)) return v;
-            // value x (m / (dmu/dt)) / mean: the sampled density over the mixture's (see the class comment); where
-            // dmu/dt vanishes (mu_o = 0 or 1, measure zero) the ratio is 1.
+            if (density && order > 0 && c[0] > 0) v.density = sampled_density(tab, si, so, t_o, c[0], v.value);
+            return v;
+        }
+
+        // value x (m / (dmu/dt)) / mean: the sampled density over the mixture's (see the class comment), m the
+        // spline of a_0 dmu/dt at t_o; where dmu/dt vanishes (mu_o = 0 or 1, measure zero) the ratio is 1.
+        Real sampled_density(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
+                             const detail::SplineWeights<Real>& so, Real t_o, Real mean, Real value) const noexcept {
             Real m = 0;
             for (int b = 0; b < 4; ++b) m += so.odd[b] * marginal(tab, si, so.first + b);  // m is odd at t = 1
             const Real jac = detail::parameter_jacobian(t_o);
-            const Real ratio = jac > std::numeric_limits<Real>::epsilon() ? m / (jac * c[0]) : Real(1);
-            v.density = ratio > 0 ? v.value * ratio : Real(0);
-            return v;
+            const Real ratio = jac > std::numeric_limits<Real>::epsilon() ? m / (jac * mean) : Real(1);
+            return ratio > 0 ? value * ratio : Real(0);
         }
 
         // The series of channel `channel` interpolated at (t_i, t_o) (see interpolate): a stored series, or the
@@ -670,7 +683,12 @@ private:
 
         // t_o by inverting the integral of the spline of m (u1), then dphi by inverting the interpolated series
         // (u2), its sign by u_sign.
-        Vec3<Real> sample_lobe(bool reflected, Vec3<Real> wi, Real u_sign, Real u1, Real u2) const noexcept {
+        // The direction, with the lobe's value and density there (as lobe() gives them, from the same series).
+        struct LobeSample {
+            Vec3<Real> wo{};
+            LobeValue at;
+        };
+        LobeSample sample_lobe(bool reflected, Vec3<Real> wi, Real u_sign, Real u1, Real u2) const noexcept {
             const detail::FourierTable<Real>& tab = reflected ? reflection : transmission;
             const int nn = n();
             const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
@@ -698,7 +716,13 @@ private:
             const Real ex = r > 0 ? -wi.x / r : Real(1), ey = r > 0 ? -wi.y / r : Real(0);
             const Real cp = std::cos(phi), sp = std::sin(phi);
             const Real st = std::sqrt(detail::clamp_unit((1 - mu_o) * (1 + mu_o)));
-            return {st * (cp * ex - sp * ey), st * (cp * ey + sp * ex), reflected ? mu_o : -mu_o};
+            LobeSample out;
+            out.wo = {st * (cp * ex - sp * ey), st * (cp * ey + sp * ex), reflected ? mu_o : -mu_o};
+            // At the pole (wi or wo along the normal) only mode 0 is seen, as cos_dphi() says there.
+            const Real g = detail::cosine_series(c, order, r > 0 && st > 0 ? cp : Real(1));
+            out.at.value = g > 0 ? g : Real(0);
+            out.at.density = sampled_density(tab, si, so, t_o, c[0], out.at.value);
+            return out;
         }
 
         // The Snell direction of the beam leaving below (indices eta_above -> eta_below: the tangential part scales).
