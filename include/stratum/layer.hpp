@@ -1180,7 +1180,7 @@ namespace detail {
 /// faces) under a specular top and over a specular face or a Lambertian floor, with critical cosines inside
 /// (LayerOptions::critical_split), Gauss rules on the panels between them: the panels below the larger critical
 /// cosine mu_c share min(M/2, ceil(M mu_c)) points (at least one each), the escape cone [mu_c, 1] gets the rest
-/// (with too few ordinates, no split). Nodes ascending, weights summing to 1.
+/// (with too few ordinates, no split); from M = 32 on, the panels above a cut are ruled in sqrt(mu - cut). Nodes ascending, weights summing to 1.
 template <class Real>
 Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                   const Boundary<Real>& bottom, const LayerOptions& options) {
@@ -1210,9 +1210,15 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
         const int points = p == panels - 1 ? top_points : below / (panels - 1) + (p < below % (panels - 1) ? 1 : 0);
         const Quadrature<Real> g = gauss_legendre_half<Real>(points);
         const Real a = edges[static_cast<std::size_t>(p)], width = edges[static_cast<std::size_t>(p + 1)] - a;
+        // Above a critical cosine F ~ 1 - c sqrt(mu - mu_c): from 32 ordinates on, the panel is ruled in
+        // s = sqrt((mu - a) / width), in which that is smooth (mu = a + width s^2, dmu = 2 width s ds). Fewer
+        // ordinates keep the rule in mu: the map coarsens the spacing near mu = 1, where the beam enters, and loses
+        // there (measured crossover near M = 28; docs/physics.md section 6).
+        const bool graded = p > 0 && m >= 32;
         for (std::size_t i = 0; i < g.size(); ++i) {
-            q.nodes.push_back(a + width * g.nodes[i]);
-            q.weights.push_back(width * g.weights[i]);
+            const Real x = g.nodes[i];
+            q.nodes.push_back(graded ? a + width * x * x : a + width * x);
+            q.weights.push_back(graded ? 2 * width * x * g.weights[i] : width * g.weights[i]);
         }
     }
     return q;
