@@ -347,9 +347,14 @@ public:
     }
 
     /// f(wi, wo) (per steradian, no cosine): the layer's brdf or btdf, whichever the hemispheres call for. Deltas
-    /// are not evaluated (0), as in RoughDielectric. TransportMode::radiance exchanges the arguments.
+    /// are not evaluated (0), as in RoughDielectric. TransportMode::radiance exchanges the arguments; on a one-sided
+    /// table, whose light from below is not tabulated, a transmission seen from above is then the importance value
+    /// times (eta_above / eta_below)^2 (generalized reciprocity, the factor of TransportMode).
     Real eval(Vec3<Real> wi, Vec3<Real> wo, TransportMode mode = TransportMode::importance) const noexcept {
-        if (mode == TransportMode::radiance) std::swap(wi, wo);
+        if (mode == TransportMode::radiance) {
+            if (one_sided_transmission(wi, wo)) return eval(wi, wo) * sides_[0]->radiance_factor();
+            std::swap(wi, wo);
+        }
         const Side* s = side(wi, wo);
         if (!s || !(wo.z != 0)) return Real(0);
         const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
@@ -360,7 +365,14 @@ public:
 
     /// Every channel's f(wi, wo) into values[0 .. channels()) (eval gives their luminance).
     void eval(Vec3<Real> wi, Vec3<Real> wo, Real* values, TransportMode mode = TransportMode::importance) const noexcept {
-        if (mode == TransportMode::radiance) std::swap(wi, wo);
+        if (mode == TransportMode::radiance) {
+            if (one_sided_transmission(wi, wo)) {
+                eval(wi, wo, values);
+                for (int c = 0; c < channels(); ++c) values[c] *= sides_[0]->radiance_factor();
+                return;
+            }
+            std::swap(wi, wo);
+        }
         const int nc = channels();
         for (int c = 0; c < nc; ++c) values[c] = 0;
         const Side* s = side(wi, wo);
@@ -765,6 +777,12 @@ private:
     }
 
     static bool finite(Vec3<Real> v) noexcept { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+    // Radiance mode on a one-sided table with the viewer (wi) above and the light below: exchanging the arguments
+    // would ask for light from below, which is not tabulated.
+    bool one_sided_transmission(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        return !sides_[1] && wi.z > 0 && wo.z < 0;
+    }
 
     static Real check_tolerance(Real tolerance) {
         return detail::require_closed("TabulatedBSDF tolerance", tolerance, Real(1e-7), Real(0.5));
