@@ -347,7 +347,11 @@ struct SlabModes {
 /// half-range Gauss rule integrates the truncated phase function exactly (to rounding); a rule split at critical
 /// cosines (layer_quadrature) does not, and at albedo 1 the slab would then lose energy. Where a row's defect
 /// exceeds rounding it is moved onto the diagonal (forward scattering into the same direction), which keeps the
-/// matrix symmetric: P+_nn += (2 - sum) / w_n.
+/// matrix symmetric: P+_nn += (2 - sum) / w_n. The defect is small for delta-M scaled media (<= 1% at 4 ordinates);
+/// for a peaked phase function without delta-M (g = 0.99, delta_m off, 32 ordinates) it reaches 40% and the
+/// diagonal takes large corrections (README, known limitations). Rescaling the rows in proportion to the scattering
+/// instead (symmetrically) was tried: it keeps the shape of a peak but costs accuracy in the usual case (worst error
+/// against adding-doubling at M = 48: 7.6e-6 instead of 8.6e-7).
 template <class Real>
 void make_discretely_conservative(PhaseFourierMatrices<Real>& p, const Quadrature<Real>& q) {
     if (p.modes < 1) return;
