@@ -148,6 +148,14 @@ TEST_CASE("pbrt .bsdf: files pbrt-v3 would refuse are refused") {
     bad = good;
     bad[24] = 2;  // two channels (pbrt-v3 reads 1 or 3)
     CHECK_THROWS_AS(read(bad), std::runtime_error);
+    bad = good;
+    const std::int32_t huge = 100000;  // nMu: 1e10 pairs, refused before anything is allocated
+    std::memcpy(&bad[12], &huge, 4);
+    CHECK_THROWS_AS(read(bad), std::runtime_error);
+    bad = good;
+    const float descending = 0.5f;  // mu[0] = 0.5 > mu[1]
+    std::memcpy(&bad[64], &descending, 4);
+    CHECK_THROWS_AS(read(bad), std::runtime_error);
     CHECK_THROWS_AS(read(good.substr(0, good.size() - 4)), std::runtime_error);  // truncated
     CHECK_THROWS_AS(read(good.substr(0, 30)), std::runtime_error);
     CHECK_THROWS_AS(read_pbrt_bsdf(std::string("/nonexistent/x.bsdf")), std::runtime_error);

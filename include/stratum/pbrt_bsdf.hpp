@@ -322,8 +322,9 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     if (bases != 1 || (channels != 1 && channels != 3))
         throw std::runtime_error("stratum: pbrt .bsdf file: " + std::to_string(channels) + " channels and " +
                                  std::to_string(bases) + " bases (1 or 3, and 1, supported)");
-    if (n < 2 || n > 100000 || n_coeffs < 0 || ints[6] != 0)
-        throw std::runtime_error("stratum: pbrt .bsdf file: invalid sizes");
+    // nMu up to 4096 (16.7 M pairs: far beyond any table; a corrupt header must not allocate without bound).
+    if (n < 2 || n > 4096 || n_coeffs < 0 || ints[6] != 0)
+        throw std::runtime_error("stratum: pbrt .bsdf file: invalid sizes (nMu = " + std::to_string(n) + ")");
     PbrtBsdfTable t;
     t.channels = channels;
     t.eta = floats[0];
@@ -334,6 +335,9 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     t.length.resize(nn);
     t.coeffs.resize(static_cast<std::size_t>(n_coeffs));
     detail::get_bytes(in, t.mu.data(), 4 * t.mu.size());
+    for (std::size_t j = 0; j < t.mu.size(); ++j)
+        if (!(t.mu[j] >= -1 && t.mu[j] <= 1) || (j > 0 && !(t.mu[j] >= t.mu[j - 1])))
+            throw std::runtime_error("stratum: pbrt .bsdf file: the cosines are not ascending in [-1, 1]");
     detail::get_bytes(in, t.cdf.data(), 4 * nn);
     for (std::size_t p = 0; p < nn; ++p) {
         detail::get_bytes(in, &t.offset[p], 4);
