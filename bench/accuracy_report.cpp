@@ -119,23 +119,29 @@ void layer_tolerance() {
     std::printf("| ambient only | - | 1 | - | - | %.1f |\n", t_amb);
 }
 
-// ---- Layer solver: smooth Fresnel faces, one rule against the split at the critical cosine ------------------
-void layer_smooth_faces() {
-    // Prahl's adding-doubling at N = 512: tests/data/adding_doubling_reference.txt (provenance in its header).
-    struct Reference {
-        double n, albedo, g, tau, mu0, r, t;
-    };
+// Prahl's adding-doubling: tests/data/adding_doubling_reference.txt (provenance in its header).
+struct Reference {
+    double n, albedo, g, tau, mu0, r, t;
+};
+std::vector<Reference> adding_doubling_references() {
     std::vector<Reference> refs;
     std::FILE* file = std::fopen(STRATUM_TEST_DATA_DIR "/adding_doubling_reference.txt", "r");
-    if (!file) return;
+    if (!file) return refs;
     char line[512];
     while (std::fgets(line, sizeof line, file)) {
         Reference x{};
-        if (line[0] != '#' && std::sscanf(line, "%lf %lf %lf %lf %lf %lf %lf", &x.n, &x.albedo, &x.g, &x.tau, &x.mu0, &x.r,
-                                          &x.t) == 7)
+        if (line[0] != '#' &&
+            std::sscanf(line, "%lf %lf %lf %lf %lf %lf %lf", &x.n, &x.albedo, &x.g, &x.tau, &x.mu0, &x.r, &x.t) == 7)
             refs.push_back(x);
     }
     std::fclose(file);
+    return refs;
+}
+
+// ---- Layer solver: smooth Fresnel faces, one rule against the split at the critical cosine ------------------
+void layer_smooth_faces() {
+    const std::vector<Reference> refs = adding_doubling_references();
+    if (refs.empty()) return;
     std::printf("\n## Layer solver: smooth Fresnel faces\n\nSlabs between smooth faces in air against Prahl's converged "
                 "adding-doubling (tests/data/adding_doubling_reference.txt: %zu cases; 12 slabs, n 1.4 and 1.5, albedo "
                 "0.5 to 1, g 0 to 0.9, tau 1 to 16, at normal incidence, and 12 oblique incidences, mu0 = 0.05 to 0.99 in "
@@ -343,20 +349,7 @@ void pareto_fronts() {
     }
     // 2. A smooth-faced tissue slab: ordinates, the critical split, delta-M; fluxes against adding-doubling.
     {
-        struct Reference {
-            double n, albedo, g, tau, mu0, r, t;
-        };
-        std::vector<Reference> refs;
-        if (std::FILE* file = std::fopen(STRATUM_TEST_DATA_DIR "/adding_doubling_reference.txt", "r")) {
-            char line[512];
-            while (std::fgets(line, sizeof line, file)) {
-                Reference x{};
-                if (line[0] != '#' && std::sscanf(line, "%lf %lf %lf %lf %lf %lf %lf", &x.n, &x.albedo, &x.g, &x.tau, &x.mu0,
-                                                  &x.r, &x.t) == 7)
-                    refs.push_back(x);
-            }
-            std::fclose(file);
-        }
+        const std::vector<Reference> refs = adding_doubling_references();
         stratum::LayerRequest<double> request;
         request.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
         std::vector<Run> runs;
@@ -377,7 +370,7 @@ void pareto_fronts() {
                         const auto layer = solve(x);
                         e = std::max({e, std::fabs(layer.reflectance(x.mu0).total() - x.r), std::fabs(layer.transmittance(x.mu0) - x.t)});
                     }
-                    const double t = median_ms([&] { (void)solve(refs.front()).reflectance(1.0); }, 3);
+                    const double t = refs.empty() ? 0.0 : median_ms([&] { (void)solve(refs.front()).reflectance(1.0); }, 3);
                     char k[96];
                     std::snprintf(k, sizeof k, "M = %d, split %s, delta-M %s", m, split ? "on" : "off", dm ? "on" : "off");
                     runs.push_back({k, e, t, m == 16 && split && dm});

@@ -126,7 +126,9 @@ TEST_CASE("pbrt .bsdf: 2 pi times the last cdf entry of a row is the albedo at t
         const double cdf = 2 * pi * file.cdf[static_cast<std::size_t>(o * n + n - 1)];
         const auto albedo = skin_table().albedo(mu_o);
         INFO("mu_o " << mu_o);
-        CHECK(cdf == doctest::Approx(albedo.reflectance + albedo.transmittance).epsilon(mu_o < 0.1 ? 0.05 : 0.01));
+        // Measured: 1.05e-2 below mu_o = 0.1, 9.4e-3 above (the layer's own reciprocity at 8 ordinates, and the
+        // file's Catmull-Rom in mu against the table's spline in t near grazing); bounds 1.5e-2 and 1.2e-2.
+        CHECK(cdf == doctest::Approx(albedo.reflectance + albedo.transmittance).epsilon(mu_o < 0.1 ? 1.5e-2 : 1.2e-2));
     }
 }
 

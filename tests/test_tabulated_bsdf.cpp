@@ -124,8 +124,9 @@ TEST_CASE("TabulatedBSDF agrees with the layer at random true angles within its 
 TEST_CASE("TabulatedBSDF: its albedo is the integral of the layer's BRDF and BTDF") {
     // Independent of the table: int f |wo.z| dwo = 2 pi int a_0 dmu_o, the layer's mode-0 coefficients
     // (fourier_coefficients, checked against brdf and btdf above) integrated by a 64-point Gauss rule, plus the
-    // top's own reflectance. At 16 ordinates the layer's fluxes (reflectance(), transmittance()) agree with
-    // these integrals to 5e-4 (measured), and the table's albedo with them to 1e-3.
+    // top's own reflectance. Measured: the table's albedo agrees with these integrals to 1.4e-4 relative (bound
+    // 3e-4), and with the layer's own fluxes (reflectance(), transmittance(), which differ from the integrals of its
+    // BRDF and BTDF by up to 7e-4 at 16 ordinates) to 7.5e-4 (bound 1.2e-3).
     const LayeredSurface<double> layer = skin();
     const TabulatedBSDF<double> table(layer, 3e-3);
     const Quadrature<double> g = gauss_legendre_half<double>(64);
@@ -142,10 +143,10 @@ TEST_CASE("TabulatedBSDF: its albedo is the integral of the layer's BRDF and BTD
         }
         const auto albedo = table.albedo(mu_i);
         INFO("mu_i " << mu_i);
-        CHECK(std::fabs(albedo.reflectance - r) <= 1e-3 * r);
-        CHECK(std::fabs(albedo.transmittance - t) <= 1e-3 * t);
-        CHECK(std::fabs(albedo.reflectance - layer.reflectance(mu_i).total()) <= 2e-3 * r);
-        CHECK(std::fabs(albedo.transmittance - layer.transmittance(mu_i)) <= 2e-3 * t);
+        CHECK(std::fabs(albedo.reflectance - r) <= 3e-4 * r);
+        CHECK(std::fabs(albedo.transmittance - t) <= 3e-4 * t);
+        CHECK(std::fabs(albedo.reflectance - layer.reflectance(mu_i).total()) <= 1.2e-3 * r);
+        CHECK(std::fabs(albedo.transmittance - layer.transmittance(mu_i)) <= 1.2e-3 * t);
     }
 }
 
@@ -270,8 +271,8 @@ TEST_CASE("TabulatedBSDF: smooth faces keep the mirror reflection and the direct
         MESSAGE("glass slab mu " << mu << ": table R " << a.reflectance << " T " << a.transmittance
                                  << "; integrals " << r << ", " << t << "; layer fluxes " << layer.reflectance(mu).total()
                                  << ", " << layer.transmittance(mu));
-        CHECK(std::fabs(a.reflectance - r) <= 2e-4 * r);
-        CHECK(std::fabs(a.transmittance - t) <= 2e-4 * t);
+        CHECK(std::fabs(a.reflectance - r) <= 1e-4 * r);  // 1e-5 measured
+        CHECK(std::fabs(a.transmittance - t) <= 1e-4 * t);  // 5e-5 measured (mu 0.1)
     }
     // At normal incidence the transmitted delta leaves straight down with the layer's direct transmittance.
     const Vec3<double> wi{0, 0, 1};
@@ -324,6 +325,7 @@ TEST_CASE("TabulatedBSDF: sides, transport mode, degenerate input and validation
 }
 
 TEST_CASE("TabulatedBSDF<float> from a double layer: the double table rounded") {
+    // float rounding of the stored coefficients and of the evaluation: 1.5e-6 of max(1, f) measured; bound 1e-5.
     const LayeredSurface<double> layer = skin(8);
     const TabulatedBSDF<double> d(layer, 1e-2);
     const TabulatedBSDF<float> f(layer, 1e-2f);
@@ -336,7 +338,7 @@ TEST_CASE("TabulatedBSDF<float> from a double layer: the double table rounded") 
         const Vec3<float> wi_f{static_cast<float>(wi.x), static_cast<float>(wi.y), static_cast<float>(wi.z)};
         const Vec3<float> wo_f{static_cast<float>(wo.x), static_cast<float>(wo.y), static_cast<float>(wo.z)};
         const double a = d.eval(wi, wo), b = f.eval(wi_f, wo_f);
-        CHECK(std::fabs(a - b) <= 1e-4 * std::fmax(1.0, a));
+        CHECK(std::fabs(a - b) <= 1e-5 * std::fmax(1.0, a));
     }
 }
 
@@ -349,7 +351,7 @@ TEST_CASE("TabulatedBSDF: a Lambertian floor (nothing transmitted) and outputs n
     const Vec3<double> wi = direction(0.7, 0.0);
     CHECK(t.albedo(0.7).transmittance == 0);
     CHECK(t.eval(wi, direction(-0.5, 1.0)) == 0);
-    CHECK(t.albedo(0.7).reflectance == doctest::Approx(floor.reflectance(0.7).total()).epsilon(5e-3));
+    CHECK(t.albedo(0.7).reflectance == doctest::Approx(floor.reflectance(0.7).total()).epsilon(1e-4));  // 1.9e-5 measured
     LayerRequest<double> surface_only;
     surface_only.outputs = LayerOutput::surface_reflection;
     const LayeredSurface<double> top_only = solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),

@@ -657,7 +657,7 @@ public:
     /// Outputs that were not requested (LayerRequest::outputs) evaluate to 0.
     Real brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         // degenerate input and light from below (see the class comment)
-        if (!finite(wi) || !finite(wo) || !(wi.z > 0) || !(wo.z > 0)) return Real(0);
+        if (!all_finite(wi) || !all_finite(wo) || !(wi.z > 0) || !(wo.z > 0)) return Real(0);
         const Real surface = (top_.rough() && includes(outputs_, LayerOutput::surface_reflection))
                                  ? top_.rough_interface()->brdf(wi, wo) : Real(0);
         return surface + subsurface_brdf(wi, wo, ws);
@@ -668,8 +668,8 @@ public:
     /// the truncated azimuthal series (Gibbs ringing with few modes) are returned as 0; a NaN computed from valid
     /// arguments is never hidden (degenerate arguments give 0: see the class comment).
     Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
-        if (!includes(outputs_, LayerOutput::subsurface_reflection) || !(wi.z > 0) || !(wo.z > 0) || !finite(wi) ||
-            !finite(wo))
+        if (!includes(outputs_, LayerOutput::subsurface_reflection) || !(wi.z > 0) || !(wo.z > 0) || !all_finite(wi) ||
+            !all_finite(wo))
             return Real(0);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
@@ -682,7 +682,7 @@ public:
     /// forward_peak_transmittance().
     Real btdf(Vec3<Real> wi, Vec3<Real> wo, Workspace& ws) const {
         if (!includes(outputs_, LayerOutput::transmission) || bottom_.lambertian() || !(wi.z > 0) || !(wo.z < 0) ||
-            !finite(wi) || !finite(wo))
+            !all_finite(wi) || !all_finite(wo))
             return Real(0);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
@@ -747,7 +747,7 @@ public:
     /// r_a(wo): subsurface radiance leaving towards wo (wo.z > 0) under a uniform sky of unit radiance
     /// (Stam's ambient term; the top's own reflection of the sky is its reflectance(wo.z) by reciprocity).
     Real ambient(Vec3<Real> wo, Workspace& ws) const {
-        if (!includes(outputs_, LayerOutput::ambient) || !(wo.z > 0) || !finite(wo)) return Real(0);
+        if (!includes(outputs_, LayerOutput::ambient) || !(wo.z > 0) || !all_finite(wo)) return Real(0);
         const std::size_t m = q_.size();
         ws.c.assign(m, Real(0));
         for (std::size_t i = 0; i < m; ++i) ws.c[i] = ambient_field_[i];
@@ -1065,8 +1065,6 @@ private:
     // x < 0 -> 0 (rounding or the interpolation's overshoot); NaN passes through so that tests see it.
     static Real non_negative(Real x) noexcept { return x < 0 ? Real(0) : x; }
 
-    // No NaN or infinite component (the evaluation functions return 0 for such a direction).
-    static bool finite(Vec3<Real> v) noexcept { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
     // The unscattered beam between two specular faces at internal cosine mu: d = e^{-tau/mu} per pass, the faces'
     // reflectances from inside, r21 (top) and r23 (bottom), and loss = 1 - r21 r23 d^2, the share of the beam that a

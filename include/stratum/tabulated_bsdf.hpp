@@ -406,7 +406,7 @@ public:
                             Lobe allowed = Lobe::all) const noexcept {
         const bool below = wi.z < 0;
         const Side* s = below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
-        if (!s || !finite(wi) || !(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return {};
+        if (!s || !all_finite(wi) || !(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return {};
         Vec3<Real> w = wi;
         if (below) w.z = -w.z;
         const Albedos al = s->albedos(detail::clamp_unit(w.z), allowed);
@@ -768,7 +768,7 @@ private:
     // The side for wi, with both directions mirrored into the frame where light arrives from above; null for
     // degenerate directions and for light from below on a one-sided table.
     const Side* side(Vec3<Real>& wi, Vec3<Real>& wo) const noexcept {
-        if (!finite(wi) || !finite(wo) || !(wi.z != 0)) return nullptr;
+        if (!all_finite(wi) || !all_finite(wo) || !(wi.z != 0)) return nullptr;
         if (wi.z > 0) return &*sides_[0];
         if (!sides_[1]) return nullptr;
         wi.z = -wi.z;
@@ -776,7 +776,6 @@ private:
         return &*sides_[1];
     }
 
-    static bool finite(Vec3<Real> v) noexcept { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
     // Radiance mode on a one-sided table with the viewer (wi) above and the light below: exchanging the arguments
     // would ask for light from below, which is not tabulated.

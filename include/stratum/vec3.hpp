@@ -38,6 +38,12 @@ STRATUM_HOST_DEVICE constexpr Vec3<Real> cross(Vec3<Real> a, Vec3<Real> b) noexc
 template <class Real>
 STRATUM_HOST_DEVICE Real length(Vec3<Real> a) noexcept { return std::sqrt(dot(a, a)); }
 
+/// No component is NaN or infinite.
+template <class Real>
+STRATUM_HOST_DEVICE bool all_finite(Vec3<Real> a) noexcept {
+    return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
+}
+
 /// a / |a|; the zero vector is returned unchanged (no NaN).
 template <class Real>
 STRATUM_HOST_DEVICE Vec3<Real> normalize(Vec3<Real> a) noexcept {

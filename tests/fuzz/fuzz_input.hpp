@@ -10,6 +10,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include <stratum/vec3.hpp>
+
 namespace stratum_fuzz {
 
 class Input {
@@ -47,6 +49,28 @@ private:
     std::size_t size_;
     std::size_t pos_ = 0;
 };
+
+/// A unit vector from a cosine and an azimuth; the cosine may be exactly 0, +-1 or grazing.
+inline stratum::Vec3<double> direction(Input& in) {
+    double mu = in.in(-1, 1);
+    if (!(std::fabs(mu) <= 1)) mu = 0.5;
+    switch (in.byte() & 7) {
+        case 0: mu = mu < 0 ? -1 : 1; break;
+        case 1: mu = std::copysign(1e-300, mu); break;
+        case 2: mu = 0; break;
+        default: break;
+    }
+    double phi = in.in(0, 6.283185307179586);
+    if (!std::isfinite(phi)) phi = 0;
+    const double s = std::sqrt((1 - mu) * (1 + mu));
+    return {s * std::cos(phi), s * std::sin(phi), mu};
+}
+
+/// A uniform in [0, 1) (0.5 for a raw value outside it).
+inline double unit(Input& in) {
+    const double u = in.in(0, 1);
+    return u >= 0 && u < 1 ? u : 0.5;
+}
 
 /// Aborts (which libFuzzer reports with the input) when a promise of the library is broken.
 inline void require(bool ok, const char* what) {

@@ -16,31 +16,12 @@
 namespace {
 
 using stratum_fuzz::Input;
+using stratum_fuzz::direction;
+using stratum_fuzz::unit;
 using stratum_fuzz::require;
 using V = stratum::Vec3<double>;
 
 bool finite_nonnegative(double x) { return std::isfinite(x) && x >= 0; }
-
-// A unit vector from a cosine and an azimuth; the cosine may be exactly 0, +-1 or grazing.
-V direction(Input& in) {
-    double mu = in.in(-1, 1);
-    if (!(std::fabs(mu) <= 1)) mu = 0.5;
-    switch (in.byte() & 7) {
-        case 0: mu = mu < 0 ? -1 : 1; break;
-        case 1: mu = std::copysign(1e-300, mu); break;
-        case 2: mu = 0; break;
-        default: break;
-    }
-    double phi = in.in(0, 6.283185307179586);
-    if (!std::isfinite(phi)) phi = 0;
-    const double s = std::sqrt((1 - mu) * (1 + mu));
-    return {s * std::cos(phi), s * std::sin(phi), mu};
-}
-
-double unit(Input& in) {
-    const double u = in.in(0, 1);
-    return u >= 0 && u < 1 ? u : 0.5;
-}
 
 void rough_dielectric(Input& in) {
     const double sigma = in.log_in(1e-320, 1e3), eta_a = in.log_in(0.1, 10), eta_b = in.log_in(0.1, 10);

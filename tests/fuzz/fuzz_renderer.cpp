@@ -17,6 +17,7 @@ namespace {
 
 using stratum_fuzz::Input;
 using stratum_fuzz::require;
+using stratum_fuzz::unit;
 using V = stratum::Vec3<double>;
 
 bool finite_nonnegative(double x) { return std::isfinite(x) && x >= 0; }
@@ -49,29 +50,15 @@ const Tables& tables() {
     return t;
 }
 
-V direction(Input& in) {
-    switch (in.byte() & 7) {
-        case 0: return {in.raw(), in.raw(), in.raw()};  // anything, NaN and non-unit included
-        case 1: return {0, 0, (in.byte() & 1) ? 1.0 : -1.0};
-        case 2: return {1, 0, std::copysign(1e-300, in.in(-1, 1))};
-        default: break;
-    }
-    double mu = in.in(-1, 1);
-    if (!(std::fabs(mu) <= 1)) mu = 0.5;
-    double phi = in.in(0, 6.283185307179586);
-    if (!std::isfinite(phi)) phi = 0;
-    const double s = std::sqrt((1 - mu) * (1 + mu));
-    return {s * std::cos(phi), s * std::sin(phi), mu};
-}
-
-double unit(Input& in) {
-    const double u = in.in(0, 1);
-    return u >= 0 && u < 1 ? u : 0.5;
+// Any vector (raw doubles: NaN, infinities, non-unit), or one of fuzz_input.hpp's unit directions.
+V any_direction(Input& in) {
+    if ((in.byte() & 3) == 0) return {in.raw(), in.raw(), in.raw()};
+    return stratum_fuzz::direction(in);
 }
 
 void tabulated(Input& in) {
     const auto& t = tables().all[in.byte() % tables().all.size()];
-    const V wi = direction(in), wo = direction(in);
+    const V wi = any_direction(in), wo = any_direction(in);
     const auto mode = (in.byte() & 1) ? stratum::TransportMode::radiance : stratum::TransportMode::importance;
     const auto mask = static_cast<stratum::Lobe>(in.byte() & 15);
     require(finite_nonnegative(t.eval(wi, wo, mode)), "TabulatedBSDF::eval finite and >= 0");
@@ -104,7 +91,7 @@ void bssrdf(Input& in) {
     require(std::isfinite(p.origin.x) && std::isfinite(p.origin.y) && std::isfinite(p.origin.z), "probe origin finite");
     require(std::fabs(stratum::dot(p.axis, p.axis) - 1) < 1e-12, "probe axis a unit vector");
     const V d{in.in(-100, 100), in.in(-100, 100), in.in(-100, 100)};
-    V n = direction(in);
+    V n = any_direction(in);
     if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z) && stratum::dot(n, n) > 0.5 && stratum::dot(n, n) < 2))
         n = {0, 0, 1};
     if (std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z))
