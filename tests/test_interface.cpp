@@ -322,6 +322,32 @@ TEST_CASE("sample never produces NaN for any u in [0, 1)") {
     CHECK(bad == 0);
 }
 
+TEST_CASE("brdf and btdf are facet_brdf / facet_btdf times shadowing_over_cosines, within 4 ulp") {
+    // The factored form that InterfaceOperators evaluates (the shadowing computed once per pair of cosines) against
+    // the whole evaluation, for every shadowing form, both sides, random directions (1e-3 < |z| < 1). Measured: at
+    // most 1.7 eps relative apart (1.8 million pairs).
+    std::mt19937_64 rng(5);
+    for (Shadowing form : {Shadowing::height_correlated, Shadowing::separable, Shadowing::masking_only})
+        for (double sigma : {0.02, 0.3, 1.5}) {
+            const RoughDielectric<double> r(sigma, 1.0, 1.4, form);
+            int nonzero = 0;
+            for (int i = 0; i < 2000; ++i) {
+                const Vec3<double> wi = random_direction(rng), wo = random_direction(rng);
+                if (std::fabs(wi.z) < 1e-3 || std::fabs(wo.z) < 1e-3) continue;
+                const bool transmission = wi.z * wo.z < 0;
+                const double whole = transmission ? r.btdf(wi, wo) : r.brdf(wi, wo);
+                const double facet = transmission ? r.facet_btdf(wi, wo) : r.facet_brdf(wi, wo);
+                const double factored = facet * r.shadowing_over_cosines(std::fabs(wi.z), std::fabs(wo.z), transmission);
+                CAPTURE(wi.z);
+                CAPTURE(wo.z);
+                // (+ the smallest normal: far outside narrow lobes both forms underflow, in different places)
+                CHECK(std::fabs(factored - whole) <= 4 * std::numeric_limits<double>::epsilon() * whole + std::numeric_limits<double>::min());
+                nonzero += whole > 0;
+            }
+            CHECK(nonzero > 300);  // measured 395 to 413 at sigma 0.02 (narrow lobes), more above
+        }
+}
+
 TEST_CASE("float, double and long double instantiations agree") {
     const RoughDielectric<float> f(0.3f, 1.0f, 1.4f);
     const RoughDielectric<double> d(0.3, 1.0, 1.4);

@@ -4,8 +4,11 @@
 
 #include <stratum/interface_operators.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -103,6 +106,33 @@ TEST_CASE("a Lambertian kernel has only the k = 0 coefficient, 2c, and conserves
         CHECK(std::fabs(flux / (q.weights[static_cast<std::size_t>(m)] * q.nodes[static_cast<std::size_t>(m)]) - c) <= 1e-14);
         for (int n = 0; n < 12; ++n) CHECK(std::fabs(op(1, n, m)) <= 1e-16);
     }
+}
+
+TEST_CASE("the cosine moments (Reinsch's recurrence) are within 1.2 k ulp of cos(k phi), also next to 0 and pi") {
+    // Reference: cos(k phi) in long double (64-bit mantissa here; the bound leaves the reference's own error out of
+    // it). Measured worst 1.13 k ulp for k < 1024; the plain Chebyshev recurrence loses up to 285 k ulp near 0 and
+    // pi, which is why the accumulation uses Reinsch's form. A test of one sample per call: the 8-lane blocks and
+    // the sign split are exercised by the kernels below (Lambert, von Mises) and the operators' tests.
+    const int K = 1024;
+    std::vector<double> out(K);
+    std::mt19937_64 rng(11);
+    double worst = 0;
+    for (int trial = 0; trial < 600; ++trial) {
+        const double u = stratum_test::uniform(rng);
+        const double phi = trial < 200 ? std::pow(10.0, -12 * u) : trial < 400 ? 3.141592653589793 - std::pow(10.0, -12 * u)
+                                                                               : 3.141592653589793 * u;
+        {
+            stratum::detail::CosineMoments<double> moments(K, out.data());
+            moments.add(1.0, std::cos(phi), std::sin(phi));
+        }
+        for (int k = 0; k < K; ++k) {
+            const long double exact = std::cos(static_cast<long double>(k) * static_cast<long double>(phi));
+            const double err = std::fabs(out[static_cast<std::size_t>(k)] - static_cast<double>(exact));
+            worst = std::fmax(worst, err / (std::numeric_limits<double>::epsilon() * std::max(k, 1)));
+        }
+    }
+    MESSAGE("worst cos(k phi) error: " << worst << " k ulp");
+    CHECK(worst <= 1.2);
 }
 
 TEST_CASE("von Mises lobes of width 1 to 1e-4 rad give the Bessel coefficients 2 pi e^-kappa I_k(kappa)") {

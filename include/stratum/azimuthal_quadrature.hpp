@@ -195,30 +195,92 @@ Real call_kernel(const Kernel& rho, Real mu_in, Real mu_out, Real c, Real s) {
         return static_cast<Real>(rho(mu_in, mu_out, c));
 }
 
+// Accumulates out[k] += sum_j f_j cos(k phi_j), k = 0..modes-1, over the samples of an azimuthal rule, a block of
+// kLanes samples at a time: the blocks' recurrences are independent (the sum over k of a single sample is a chain
+// of dependent multiplications, which bounded the old loop by latency, not by arithmetic).
+// cos(k phi) comes from Reinsch's form of the Chebyshev recurrence, stable where the plain one
+// (T_k+1 = 2x T_k - T_k-1, x = cos phi) loses ~k^2 ulp near x = +-1: with S_k = sigma^k T_k, sigma = sign(x),
+//   S_k+1 = S_k + D_k+1,   D_k+1 = D_k + mu S_k,   S_0 = 1, D_1 = mu / 2,   mu = 2 (|x| - 1) = -2 sin^2 phi / (1 + |x|),
+// the last form free of cancellation (measured: within 1.2 k ulp of cos(k phi) for k < 1024, phi random and within
+// 1e-12 of 0 and pi; the plain recurrence loses up to 285 k ulp there). The samples are
+// kept in two blocks by the sign of x, so the lanes of a block share sigma.
+template <class Real>
+class CosineMoments {
+public:
+    static constexpr int kLanes = 8;
+
+    CosineMoments(int modes, Real* out) noexcept : modes_(modes), out_(out) {
+        for (int k = 0; k < modes; ++k) out[k] = Real(0);
+    }
+    ~CosineMoments() { flush_all(); }
+    CosineMoments(const CosineMoments&) = delete;
+    CosineMoments& operator=(const CosineMoments&) = delete;
+
+    // Adds f cos(k phi) for the sample with c = cos(phi), s = sin(phi).
+    void add(Real f, Real c, Real s) noexcept {
+        const int side = c < 0 ? 1 : 0;
+        Block& b = blocks_[side];
+        b.f[b.count] = f;
+        b.mu[b.count] = -2 * s * s / (1 + std::fabs(c));
+        if (++b.count == kLanes) flush(side);
+    }
+
+    // Adds the pending samples to out (the destructor does it too).
+    void flush_all() noexcept {
+        flush(0);
+        flush(1);
+    }
+
+private:
+    struct Block {
+        Real f[kLanes] = {}, mu[kLanes] = {};
+        int count = 0;
+    };
+
+    void flush(int side) noexcept {
+        Block& b = blocks_[side];
+        if (b.count == 0) return;
+        for (int l = b.count; l < kLanes; ++l) b.f[l] = b.mu[l] = Real(0);
+        Real S[kLanes], D[kLanes];
+        Real sum = 0;
+        for (int l = 0; l < kLanes; ++l) {
+            S[l] = b.f[l];
+            D[l] = b.f[l] * b.mu[l] / 2;
+            sum += S[l];
+        }
+        out_[0] += sum;
+        for (int k = 1; k < modes_; ++k) {
+            for (int l = 0; l < kLanes; ++l) S[l] += D[l];
+            Real t = 0;
+            for (int l = 0; l < kLanes; ++l) t += S[l];
+            out_[k] += (side == 1 && (k & 1)) ? -t : t;
+            for (int l = 0; l < kLanes; ++l) D[l] += b.mu[l] * S[l];
+        }
+        b.count = 0;
+    }
+
+    int modes_;
+    Real* out_;
+    Block blocks_[2];
+};
+
 }  // namespace detail
 
 /// Raw Fourier coefficients I_k(mu_in, mu_out) = int_0^{2pi} rho(mu_in -> mu_out, phi) cos(k phi) dphi
 /// for k = 0..modes-1, written to out[0..modes-1], at ANY pair of cosines (true incidence/viewing
 /// angles, not only ordinates). rho is called as rho(mu_in, mu_out, cos_phi[, sin_phi]) with phi in
 /// [0, pi]; features gives the phi scale of its peak at phi = 0 (pi, or anything larger, for a kernel
-/// without a peak) and its non-smooth points, if any. Allocation-free; cos(k phi) comes from the
-/// rotation recurrence (error ~ k ulp).
+/// without a peak) and its non-smooth points, if any. Allocation-free; cos(k phi) from Reinsch's recurrence
+/// (detail::CosineMoments; error ~ k ulp).
 template <class Real, class Kernel>
 void azimuthal_coefficients(const Kernel& rho, Real mu_in, Real mu_out,
                             const AzimuthalFeatures<detail::non_deduced_t<Real>>& features,
                             int modes, Real* out, const AzimuthalQuadrature<detail::non_deduced_t<Real>>& rule) {
-    for (int k = 0; k < modes; ++k) out[k] = Real(0);
+    detail::CosineMoments<Real> moments(modes, out);
     rule.for_each_node(features, modes, [&](Real phi, Real weight) {
         const Real c = std::cos(phi), s = std::sin(phi);
         const Real f = 2 * weight * detail::call_kernel(rho, mu_in, mu_out, c, s);
-        if (f == Real(0)) return;
-        Real ck = 1, sk = 0;  // cos(k phi), sin(k phi)
-        for (int k = 0; k < modes; ++k) {
-            out[k] += f * ck;
-            const Real next = ck * c - sk * s;
-            sk = sk * c + ck * s;
-            ck = next;
-        }
+        if (f != Real(0)) moments.add(f, c, s);
     });
 }
 

@@ -242,7 +242,31 @@ public:
     /// for a smooth interface.
     /// Symmetric, brdf(wi, wo) == brdf(wo, wi), for every shadowing model but Shadowing::masking_only.
     STRATUM_HOST_DEVICE Real brdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
-        if (!(wi.z * wo.z > 0) || index_matched() || smooth()) return Real(0);
+        const detail::wide_t<Real> f = facet_brdf(wi, wo);
+        if (!(f > 0)) return Real(0);
+        return detail::saturate_to<Real>(times_g2_over_cosines(f, std::fabs(wi.z), std::fabs(wo.z), false));
+    }
+
+    /// BTDF t(wi, wo) for wi, wo in opposite hemispheres (light from wi's medium into wo's medium); 0 for
+    /// the same hemisphere, for configurations no facet refracts, for index matching and for a smooth
+    /// interface (deltas).
+    /// Generalized reciprocity: btdf(wi, wo) / eta_o^2 == btdf(wo, wi) / eta_i^2.
+    STRATUM_HOST_DEVICE Real btdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        const detail::wide_t<Real> f = facet_btdf(wi, wo);
+        if (!(f > 0)) return Real(0);
+        return detail::saturate_to<Real>(times_g2_over_cosines(f, std::fabs(wi.z), std::fabs(wo.z), true));
+    }
+
+    /// brdf and btdf as (facet term) x (shadowing term), the second depending on the two cosines alone:
+    ///   brdf(wi, wo) = facet_brdf(wi, wo) shadowing_over_cosines(|wi.z|, |wo.z|, false),
+    ///   btdf(wi, wo) = facet_btdf(wi, wo) shadowing_over_cosines(|wi.z|, |wo.z|, true),
+    /// equal to brdf and btdf within a few ulp (the order of the products differs), for callers that evaluate
+    /// many directions sharing two cosines (the azimuthal integrals of InterfaceOperators) and compute the
+    /// shadowing, the costly part, once. In the wide type (double for float).
+    /// facet_brdf = F(i.h) D(h) / 4, facet_btdf = |i.h| |o.h| eta_o^2 (1 - F) D(h) / (eta_i i.h + eta_o o.h)^2, and 0
+    /// wherever brdf or btdf is 0 for any other reason than shadowing.
+    STRATUM_HOST_DEVICE detail::wide_t<Real> facet_brdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        if (!(wi.z * wo.z > 0) || index_matched() || smooth()) return 0;
         const bool below = wi.z < 0;
         if (below) {
             wi.z = -wi.z;
@@ -251,24 +275,19 @@ public:
         const Real eta_i = below ? eta_below_ : eta_above_, eta_t = below ? eta_above_ : eta_below_;
         const Vec3<Real> sum = wi + wo;
         const Real len2 = dot(sum, sum);
-        if (!(len2 > 0)) return Real(0);
+        if (!(len2 > 0)) return 0;
         const Vec3<Real> h = (Real(1) / std::sqrt(len2)) * sum;
         const Real c = dot(wi, h);
-        if (!(c > 0) || !(dot(wo, h) > 0)) return Real(0);
+        if (!(c > 0) || !(dot(wo, h) > 0)) return 0;
         const Real D = distribution_.D(h);
-        if (!(D > 0)) return Real(0);  // (spares the Lambdas, and 0 * inf at grazing directions)
+        if (!(D > 0)) return 0;  // (spares the Lambdas, and 0 * inf at grazing directions)
         const Real F = fresnel_dielectric(c, eta_t / eta_i);
-        if (!(F > 0)) return Real(0);  // (and 0 * inf where the cosines are subnormal)
+        if (!(F > 0)) return 0;  // (and 0 * inf where the cosines are subnormal)
         using W = detail::wide_t<Real>;
-        return detail::saturate_to<Real>(times_g2_over_cosines(static_cast<W>(F) * static_cast<W>(D) / 4, wi.z, wo.z, false));
+        return static_cast<W>(F) * static_cast<W>(D) / 4;
     }
-
-    /// BTDF t(wi, wo) for wi, wo in opposite hemispheres (light from wi's medium into wo's medium); 0 for
-    /// the same hemisphere, for configurations no facet refracts, for index matching and for a smooth
-    /// interface (deltas).
-    /// Generalized reciprocity: btdf(wi, wo) / eta_o^2 == btdf(wo, wi) / eta_i^2.
-    STRATUM_HOST_DEVICE Real btdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
-        if (!(wi.z * wo.z < 0) || index_matched() || smooth()) return Real(0);
+    STRATUM_HOST_DEVICE detail::wide_t<Real> facet_btdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
+        if (!(wi.z * wo.z < 0) || index_matched() || smooth()) return 0;
         const bool below = wi.z < 0;
         if (below) {
             wi.z = -wi.z;
@@ -277,22 +296,27 @@ public:
         const Real eta_i = below ? eta_below_ : eta_above_, eta_o = below ? eta_above_ : eta_below_;
         Vec3<Real> v = eta_i * wi + eta_o * wo;
         const Real len2 = dot(v, v);
-        if (!(len2 > 0)) return Real(0);
+        if (!(len2 > 0)) return 0;
         Vec3<Real> h = (Real(1) / std::sqrt(len2)) * v;
         if (h.z < 0) h = -h;
         const Real ci = dot(wi, h), co = dot(wo, h);
-        if (!(ci > 0) || !(co < 0)) return Real(0);
+        if (!(ci > 0) || !(co < 0)) return 0;
         const Real D = distribution_.D(h);
-        if (!(D > 0)) return Real(0);  // (spares the Lambdas, and 0 * inf at grazing directions)
+        if (!(D > 0)) return 0;  // (spares the Lambdas, and 0 * inf at grazing directions)
         const Real F = fresnel_dielectric(ci, eta_o / eta_i);
-        if (!(F < 1)) return Real(0);  // facet total internal reflection (and 0 * inf at subnormal cosines)
+        if (!(F < 1)) return 0;  // facet total internal reflection (and 0 * inf at subnormal cosines)
         // (eta_i (i.h) + eta_o (o.h))^2 == |v|^2, since h = +-v / |v|. The product in the wide type: for float
         // its factors can leave float's range at grazing directions although the value does not.
         using W = detail::wide_t<Real>;
         const W eo = eta_o;
-        const W factor = static_cast<W>(ci) * static_cast<W>(-co) * eo * eo * static_cast<W>(1 - F) * static_cast<W>(D) /
-                         static_cast<W>(len2);
-        return detail::saturate_to<Real>(times_g2_over_cosines(factor, wi.z, -wo.z, true));
+        return static_cast<W>(ci) * static_cast<W>(-co) * eo * eo * static_cast<W>(1 - F) * static_cast<W>(D) /
+               static_cast<W>(len2);
+    }
+    /// G2(mu_i, mu_o) / (mu_i mu_o) for cosines in (0, 1] (the shadowing form of the interface; transmission
+    /// selects the height-correlated form's transmission variant). +inf or NaN where a cosine is subnormal or 0:
+    /// use brdf or btdf there.
+    STRATUM_HOST_DEVICE detail::wide_t<Real> shadowing_over_cosines(Real mu_i, Real mu_o, bool transmission) const noexcept {
+        return times_g2_over_cosines(detail::wide_t<Real>(1), mu_i, mu_o, transmission);
     }
 
     /// brdf or btdf, whichever the hemispheres of wi and wo call for; in TransportMode::radiance with the

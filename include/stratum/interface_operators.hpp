@@ -117,14 +117,31 @@ struct RoughKernel {
     Incidence incidence;
     bool transmission;
 
-    Real operator()(Real mu_in, Real mu_out, Real c, Real s) const noexcept {
+    Real operator()(Real mu_in, Real mu_out, Real c, Real s) const noexcept { return at(mu_in, mu_out)(mu_in, mu_out, c, s); }
+
+    // The kernel of one pair of cosines, its shadowing factor computed once (RoughDielectric::facet_brdf): the
+    // shadowing (two Lambdas, and for the height-correlated transmission a Beta function) cost more than the rest
+    // of an evaluation, and an azimuthal integral evaluates the pair at some 200 azimuths.
+    struct Pair {
+        const RoughDielectric<Real>* interface;
+        bool transmission;
+        Vec3<Real> wi;
+        Real s_out, z_out;
+        wide_t<Real> shadowing;  // G2 / (mu_in mu_out); not finite: evaluate brdf or btdf whole
+        Real operator()(Real, Real, Real c, Real s) const noexcept {
+            const Vec3<Real> wo{s_out * c, s_out * s, z_out};
+            if (!std::isfinite(shadowing)) return transmission ? interface->btdf(wi, wo) : interface->brdf(wi, wo);
+            const wide_t<Real> f = transmission ? interface->facet_btdf(wi, wo) : interface->facet_brdf(wi, wo);
+            return f > 0 ? saturate_to<Real>(f * shadowing) : Real(0);
+        }
+    };
+    Pair at(Real mu_in, Real mu_out) const noexcept {
         const Real s_in = std::sqrt(std::fmax(Real(0), (1 - mu_in) * (1 + mu_in)));
         const Real s_out = std::sqrt(std::fmax(Real(0), (1 - mu_out) * (1 + mu_out)));
         const Real z_in = incidence == Incidence::from_above ? mu_in : -mu_in;
         const bool out_up = (incidence == Incidence::from_above) != transmission;
-        const Vec3<Real> wi{-s_in, Real(0), z_in};
-        const Vec3<Real> wo{s_out * c, s_out * s, out_up ? mu_out : -mu_out};
-        return transmission ? interface->btdf(wi, wo) : interface->brdf(wi, wo);
+        return {interface, transmission, Vec3<Real>{-s_in, Real(0), z_in}, s_out, out_up ? mu_out : -mu_out,
+                interface->shadowing_over_cosines(mu_in, mu_out, transmission)};
     }
 
     AzimuthalFeatures<Real> features(Real mu_in, Real mu_out) const noexcept {
@@ -405,7 +422,7 @@ public:
             return;
         }
         const detail::RoughKernel<Real> kernel{&*rough_, side, transmission};
-        azimuthal_coefficients(kernel, mu_in, mu_out, kernel.features(mu_in, mu_out), modes, out, rule_);
+        azimuthal_coefficients(kernel.at(mu_in, mu_out), mu_in, mu_out, kernel.features(mu_in, mu_out), modes, out, rule_);
     }
 
 private:
