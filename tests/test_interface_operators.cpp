@@ -245,6 +245,7 @@ TEST_CASE("the generic builder works in float and long double") {
 
 using stratum::Incidence;
 using stratum::InterfaceOperators;
+using stratum::Renormalization;
 using stratum::RoughDielectric;
 using stratum::SmoothDielectric;
 
@@ -745,6 +746,32 @@ TEST_CASE("renormalized rough operators conserve the hemispherical totals and te
     MESSAGE("eta 1.0001, M = 12: unnormalized T12 flux error " << plain_error << "; eta 1 + 1e-8: renormalized |T12 - I| "
                                                                 << identity_error);
     CHECK(identity_error <= 1e-4);
+}
+
+TEST_CASE("an interface turned over has the operators of the original flipped, bit for bit") {
+    // flipped() exchanges the sides; the constructor builds every rough interface with the denser medium below and
+    // turns it when needed, so the two ways agree exactly (what lets a solve build a layer's bottom face from its
+    // top). The sides really differ (R12 != R21), so the check can fail.
+    const Quadrature<double> q = gauss_legendre_half<double>(10);
+    for (const Renormalization renormalization : {Renormalization::none, Renormalization::hemispherical_totals})
+        for (const double n : {1.4, 1.0 / 1.4}) {
+            const InterfaceOperators<double> up(RoughDielectric<double>(0.3, 1.0, n), q, 12, AzimuthalQuadrature<double>(),
+                                                renormalization);
+            const InterfaceOperators<double> down(RoughDielectric<double>(0.3, n, 1.0), q, 12, AzimuthalQuadrature<double>(),
+                                                  renormalization);
+            const InterfaceOperators<double> turned = up.flipped();
+            CHECK(turned.R12().data == down.R12().data);
+            CHECK(turned.R21().data == down.R21().data);
+            CHECK(turned.T12().data == down.T12().data);
+            CHECK(turned.T21().data == down.T21().data);
+            CHECK(up.R12().data != up.R21().data);
+            CHECK(turned.ordinate_totals(stratum::Incidence::from_above).size() ==
+                  down.ordinate_totals(stratum::Incidence::from_above).size());
+            double r12[12], r21[12];
+            turned.r12_coefficients(0.4, 0.7, r12);
+            down.r12_coefficients(0.4, 0.7, r21);
+            for (int k = 0; k < 12; ++k) CHECK(r12[k] == r21[k]);
+        }
 }
 
 TEST_CASE("coefficient functions stay finite at extreme roughness, grazing angles and normal incidence") {

@@ -445,7 +445,7 @@ TEST_CASE("the tabulated boundary transmittance matches the exact integral") {
     for (double mu : {1e-8, 1e-5, 1e-4, 1e-3, 0.01, 0.2, 0.55, 0.9, 1.0})
         worst = std::fmax(worst, std::fabs(layer.transmittance(mu) - top.hemispherical_transmittance(mu)));
     MESSAGE("max |table - exact| = " << worst);
-    CHECK(worst < 2e-3);
+    CHECK(worst < 2e-5);  // measured 1.08e-5 (the table's interpolation; its integrals are within 4.4e-7)
 }
 
 TEST_CASE("hard parameters stay finite and bounded") {

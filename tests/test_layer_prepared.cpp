@@ -100,12 +100,13 @@ std::vector<LayerRequest<double>> requests() {
 TEST_CASE("a solve from prepared boundaries is bit-identical to the solve from the boundaries") {
     LayerOptions options;
     options.ordinates = 6;
-    const RoughDielectric<double> rough_top(0.3, 1.0, 1.4), rough_bottom(0.5, 1.4, 1.0);
+    const RoughDielectric<double> rough_top(0.3, 1.0, 1.4), rough_bottom(0.5, 1.4, 1.0), turned_top(0.3, 1.4, 1.0);
     const RoughDielectric<double> masking(0.2, 1.4, 1.2, Shadowing::masking_only);
     const SmoothDielectric<double> smooth_top(1.0, 1.4), smooth_bottom(1.4, 1.0);
     const std::pair<Boundary<double>, Boundary<double>> faces[] = {
         {rough_top, rough_bottom}, {rough_top, smooth_bottom}, {smooth_top, rough_bottom},
-        {smooth_top, smooth_bottom}, {rough_top, masking}, {Boundary<double>::index_matched(1.4), rough_bottom}};
+        {smooth_top, smooth_bottom}, {rough_top, masking}, {Boundary<double>::index_matched(1.4), rough_bottom},
+        {rough_top, turned_top}};  // (the last: the solve builds one face and turns it over for the bottom)
     const Slab<double> slabs[] = {{0.99, 0.8, 2.0}, {1.0, 0.0, 0.5}, {0.6, -0.3, 30.0}};
     for (const Renormalization renormalization : {Renormalization::hemispherical_totals, Renormalization::none}) {
         options.renormalization = renormalization;

@@ -220,6 +220,15 @@ public:
                                        ordinates, modes);
             return;
         }
+        if (interface.eta_above() > interface.eta_below()) {
+            // Built the way up (denser medium below) and turned over (flipped()): a layer's bottom face, the turned
+            // top, then equals top.flipped() bit for bit, which lets a solve reuse one face for both.
+            *this = InterfaceOperators(RoughDielectric<Real>(interface.sigma(), interface.eta_below(),
+                                                             interface.eta_above(), interface.shadowing()),
+                                       ordinates, modes, rule, renormalization)
+                        .flipped();
+            return;
+        }
         // Reciprocity halves the work (and makes the matrices reciprocal to the last bit):
         //   I^{r}(mu_m -> mu_n) = I^{r}(mu_n -> mu_m)  (r(i, o) = r(o, i), the reversed path has the same dphi),
         //   I^{t21}(mu_n -> mu_m) = (n_1 / n_2)^2 I^{t12}(mu_m -> mu_n)  (t_12(i, o) / n_2^2 = t_21(o, i) / n_1^2),
@@ -380,6 +389,22 @@ public:
             for (int n = 0; n < m; ++n) ops.r12_(0, n, j) = 2 * albedo * w;
         }
         return ops;
+    }
+
+    /// The operators of this interface turned upside down (its indices exchanged, as the bottom face of a layer whose
+    /// top is this one): light arriving at it from above is light arriving here from below, mirrored in the surface,
+    /// which a Gaussian microsurface cannot tell apart (microfacet.hpp); so R12 and R21, T12 and T21, and the totals
+    /// of the two sides exchange. For a rough interface equal to building the turned interface's operators, bit for
+    /// bit (the constructor builds every rough interface with the denser medium below, and turns it when needed);
+    /// built from the other orientation they agree within 5e-14 (rounding of the totals' integrals; measured at
+    /// sigma 0.3, n 1 | 1.4, M = 16, 32 modes). The cost of a copy.
+    InterfaceOperators flipped() const {
+        InterfaceOperators out = *this;
+        if (rough_) out.rough_.emplace(rough_->sigma(), rough_->eta_below(), rough_->eta_above(), rough_->shadowing());
+        std::swap(out.r12_, out.r21_);
+        std::swap(out.t12_, out.t21_);
+        std::swap(out.totals_above_, out.totals_below_);
+        return out;
     }
 
     int size() const noexcept { return r12_.size; }

@@ -201,6 +201,18 @@ private:
     };
 };
 
+/// Whether `bottom` is the rough face `top` turned over (same roughness and shadowing, indices exchanged): Stam's
+/// skin layer, a slab of one material in one medium. Its operators are then top's flipped (InterfaceOperators::
+/// flipped), and its entry from below top's entry from above: the solve builds the face once.
+template <class Real>
+bool turned_over(const Boundary<Real>& top, const Boundary<Real>& bottom) noexcept {
+    if (!top.rough() || !bottom.rough()) return false;
+    const RoughDielectric<Real>& t = *top.rough_interface();
+    const RoughDielectric<Real>& b = *bottom.rough_interface();
+    return t.sigma() == b.sigma() && t.shadowing() == b.shadowing() && t.eta_above() == b.eta_below() &&
+           t.eta_below() == b.eta_above();
+}
+
 /// The directional-hemispherical transmittance of a boundary for light arriving at |cosine| mu from one side (the
 /// outside of a layer: above a top face, below a bottom face). A rough face's 2-D integral is tabulated on first
 /// use (MuTable, 64 intervals; std::call_once keeps it thread-safe) and shared by every layer solved with one
@@ -220,8 +232,12 @@ public:
         const Real eta_inside = from_above ? boundary_.eta_below() : boundary_.eta_above();
         if (!boundary_.rough() || eta_outside > eta_inside || mu < grazing)
             return boundary_.hemispherical_transmittance(signed_mu);
+        // The integrals with 12 Gauss nodes per panel instead of 16: within 4.4e-7 of the default's (measured at the
+        // table's points, sigma 0.005 to 2, n 1 | 1.1, 1.4, 2.5), 25 times below the table's own interpolation error
+        // (1.1e-5, tests/test_layer.cpp), in about 0.6 of the time (10 nodes: 1.1e-5 at sigma 0.1, n 2.5).
         std::call_once(once_, [this, from_above] {
-            table_.build(intervals, [&](Real x) { return boundary_.hemispherical_transmittance(from_above ? x : -x); });
+            const RoughDielectric<Real>& face = *boundary_.rough_interface();
+            table_.build(intervals, [&](Real x) { return face.hemispherical_totals(from_above ? x : -x, 12).transmittance; });
         });
         const Real t = table_(mu);
         return t < 0 ? Real(0) : t;
@@ -1248,8 +1264,10 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     LayeredSurface s(top, bottom);
     s.top_entry_ = prepared.top_entry ? prepared.top_entry
                                       : std::make_shared<const detail::EntryTransmittance<Real>>(top, Incidence::from_above);
-    s.bottom_entry_ = prepared.bottom_entry
-                          ? prepared.bottom_entry
+    // A bottom face that is the top turned over lets light in from below as the top does from above (bit for bit).
+    s.bottom_entry_ = prepared.bottom_entry ? prepared.bottom_entry
+                      : detail::turned_over(top, bottom)
+                          ? s.top_entry_
                           : std::make_shared<const detail::EntryTransmittance<Real>>(bottom, Incidence::from_below);
     s.outputs_ = request.outputs;
     s.q_ = detail::layer_quadrature(top, interior, bottom, options);
@@ -1263,7 +1281,10 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         return ready ? ready : std::make_shared<const InterfaceOperators<Real>>(b.operators(s.q_, modes, options));
     };
     s.top_ops_ = face(top, prepared.top);
-    s.bottom_ops_ = face(bottom, prepared.bottom);
+    if (!prepared.bottom && detail::turned_over(top, bottom))
+        s.bottom_ops_ = std::make_shared<const InterfaceOperators<Real>>(s.top_ops_->flipped());  // (bit for bit)
+    else
+        s.bottom_ops_ = face(bottom, prepared.bottom);
     const detail::PreparedStack<Real> stack =
         detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request, prepared.interior);
     s.exit_top_ = prepared.top_exit.empty() ? s.top_face().transmittance_at_ordinates() : prepared.top_exit;  // 3.
