@@ -202,6 +202,27 @@ TEST_CASE("prepared boundaries in float") {
     CHECK(a.transmittance(0.5f) == b.transmittance(0.5f));
 }
 
+TEST_CASE("a prepared face turned over equals the turned face prepared, bit for bit") {
+    LayerOptions options;
+    options.ordinates = 5;
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), turned(0.3, 1.4, 1.0);
+    const PreparedBoundary<double> prepared(top, options), direct(turned, options);
+    const PreparedBoundary<double> flipped = prepared.turned_over();
+    CHECK(flipped.boundary().eta_above() == 1.4);
+    CHECK(flipped.boundary().eta_below() == 1.0);
+    CHECK(flipped.operators()->R12().data == direct.operators()->R12().data);
+    CHECK(flipped.operators()->T21().data == direct.operators()->T21().data);
+    CHECK(flipped.operators()->R12().data != prepared.operators()->R12().data);  // (the sides differ)
+    const Slab<double> slab(0.95, 0.8, 1.5);
+    for (const LayerRequest<double>& request : requests())
+        check_same(outputs(solve_layer(slab, prepared, direct, request)), outputs(solve_layer(slab, prepared, flipped, request)),
+                   request);
+    const PreparedBoundary<double> smooth = PreparedBoundary<double>(SmoothDielectric<double>(1.0, 1.33), options).turned_over();
+    CHECK(smooth.boundary().eta_above() == 1.33);
+    CHECK(smooth.operators() == nullptr);
+    CHECK_THROWS_AS(PreparedBoundary<double>(Boundary<double>::lambertian(0.5, 1.4), options).turned_over(), std::invalid_argument);
+}
+
 TEST_CASE("solve_spectral: one layer per slab, each identical to its own solve") {
     LayerOptions options;
     options.ordinates = 5;

@@ -299,6 +299,27 @@ public:
     /// The prepared operators; null for a specular face.
     const std::shared_ptr<const InterfaceOperators<Real>>& operators() const noexcept { return operators_; }
 
+    /// This rough face turned over (its indices exchanged: a layer's bottom face when this is its top, as in Stam's
+    /// skin layer), prepared from this one at the cost of a copy (InterfaceOperators::flipped; the entry tables are
+    /// shared, each side's being the other side's of the turned face): equal bit for bit to preparing the turned face.
+    /// A specular face is returned as prepared afresh (its preparation costs nothing); a Lambertian floor has no
+    /// other side (std::invalid_argument).
+    PreparedBoundary turned_over() const {
+        if (boundary_.lambertian())
+            detail::fail_invalid_argument("stratum: PreparedBoundary::turned_over: a Lambertian floor has no other side");
+        const Boundary<Real> turned = boundary_.rough()
+            ? Boundary<Real>(RoughDielectric<Real>(boundary_.rough_interface()->sigma(), boundary_.eta_below(),
+                                                   boundary_.eta_above(), boundary_.rough_interface()->shadowing()))
+            : Boundary<Real>(SmoothDielectric<Real>(boundary_.eta_below(), boundary_.eta_above()));
+        if (!operators_) return PreparedBoundary(turned, options_);
+        PreparedBoundary out(*this);
+        out.boundary_ = turned;
+        out.operators_ = std::make_shared<const InterfaceOperators<Real>>(operators_->flipped());
+        std::swap(out.from_above_, out.from_below_);
+        std::swap(out.ordinate_above_, out.ordinate_below_);
+        return out;
+    }
+
 private:
     template <class R>
     friend LayeredSurface<R> solve_stack(const PreparedBoundary<R>&, const std::vector<Slab<R>>&,
@@ -1589,7 +1610,9 @@ std::vector<LayeredSurface<Real>> solve_spectral(const std::vector<Slab<Real>>& 
                                                  const detail::non_deduced_t<Boundary<Real>>& bottom,
                                                  const LayerOptions& options = {},
                                                  const detail::non_deduced_t<LayerRequest<Real>>& request = {}) {
-    const PreparedBoundary<Real> prepared_top(top, options), prepared_bottom(bottom, options);
+    const PreparedBoundary<Real> prepared_top(top, options);
+    const PreparedBoundary<Real> prepared_bottom =
+        detail::turned_over(top, bottom) ? prepared_top.turned_over() : PreparedBoundary<Real>(bottom, options);
     std::vector<LayeredSurface<Real>> layers;
     layers.reserve(slabs.size());
     for (const Slab<Real>& slab : slabs) layers.push_back(solve_layer(slab, prepared_top, prepared_bottom, request));
