@@ -135,6 +135,22 @@ TEST_CASE("the cosine moments (Reinsch's recurrence) are within 1.2 k ulp of cos
     CHECK(worst <= 1.2);
 }
 
+TEST_CASE("the cosine moments write nothing for no modes and keep an infinite sample infinite (found by review)") {
+    double out[4] = {7, 7, 7, 7};
+    {
+        stratum::detail::CosineMoments<double> none(0, out);
+        none.add(1.0, 0.5, std::sqrt(0.75));
+    }
+    CHECK(out[0] == 7);  // (out[0] was written before: a write past the end of an array of 0 modes)
+    const double inf = std::numeric_limits<double>::infinity();
+    {
+        stratum::detail::CosineMoments<double> moments(4, out);
+        moments.add(inf, 1.0, 0.0);  // phi = 0: inf cos(k 0) = inf for every k
+        moments.add(1.0, 0.5, std::sqrt(0.75));
+    }
+    for (int k = 0; k < 4; ++k) CHECK(out[k] == inf);
+}
+
 TEST_CASE("von Mises lobes of width 1 to 1e-4 rad give the Bessel coefficients 2 pi e^-kappa I_k(kappa)") {
     // Default rule (24 points per panel): measured max error ~1e-16 relative to I_0; 2e-14 leaves room
     // for the k-fold rounding of the cos(k phi) recurrence and the sum of ~300 terms.

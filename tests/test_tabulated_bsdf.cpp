@@ -6,6 +6,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -360,6 +361,61 @@ TEST_CASE("TabulatedBSDF: a Lambertian floor (nothing transmitted) and outputs n
     // The surface lobe's shadowing from its table of the projected area (within 3.1e-9 relative, next test case).
     CHECK(s.eval(wi, direction(0.5, 2.0)) == doctest::Approx(RoughDielectric<double>(0.3, 1.0, 1.4).brdf(wi, direction(0.5, 2.0))).epsilon(1e-8));
     CHECK(s.albedo(0.7).transmittance == 0);
+}
+
+TEST_CASE("TabulatedBSDF: non-unit directions give finite values (found by fuzz_renderer)") {
+    // A direction is its cosine, whatever its length (as RoughDielectric); the surface lobe once took sin(theta) from
+    // x and y, so wi = (0, 0, 1e-310) had A(mu) = 1e-310 and a density of +inf.
+    LayerOptions o;
+    o.ordinates = 6;
+    const LayeredSurface<double> layer = solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), RoughDielectric<double>(0.3, 1.0, 1.4),
+                                                     RoughDielectric<double>(0.5, 1.4, 1.2), o);
+    const TabulatedBSDF<double> t(layer, 3e-2);
+    const Vec3<double> odd[] = {{0, 0, 1e-310}, {1e-300, 0, 1e-310}, {1e200, 1e200, 1e-300}, {0, 0, 1e300}, {3, -4, 0.5}, {0, 0, 1}};
+    for (const Vec3<double>& wi : odd)
+        for (const Vec3<double>& wo : odd) {
+            CAPTURE(wi.z);
+            CAPTURE(wo.z);
+            const double f = t.eval(wi, wo), p = t.pdf(wi, wo);
+            CHECK(std::isfinite(f));
+            CHECK(f >= 0);
+            CHECK(std::isfinite(p));
+            CHECK(p >= 0);
+        }
+}
+
+TEST_CASE("sample_cosine_series inverts G(phi) = c_0 phi + sum c_k sin(k phi) / k, peaked, flat and dipping series") {
+    // The sampled phi solves G(phi) = u c_0 pi to the stated residual eps^(2/3) c_0 pi (G evaluated here directly
+    // with std::sin, independently of the sampler's recurrences and table), is monotone in u, and lies in [0, pi].
+    // Series: a von Mises lobe (kappa 200, 40 terms: peaked near 0), a constant (phi = u pi exactly up to rounding),
+    // one peaked at pi (alternating signs), and one whose truncation dips below 0.
+    std::vector<std::vector<double>> series;
+    std::vector<double> vm(40);
+    for (int k = 0; k < 40; ++k) vm[static_cast<std::size_t>(k)] = std::exp(-k * k / 400.0);  // ~ Gaussian lobe of width 0.05
+    series.push_back(vm);
+    series.push_back({1.0});
+    std::vector<double> back(12);
+    for (int k = 0; k < 12; ++k) back[static_cast<std::size_t>(k)] = (k % 2 ? -1.0 : 1.0) * std::pow(0.8, k);
+    series.push_back(back);
+    series.push_back({1.0, 1.5, 0.2});  // 1 + 1.5 cos(phi) + 0.2 cos(2 phi) < 0 near pi
+    const double residual = std::cbrt(std::numeric_limits<double>::epsilon() * std::numeric_limits<double>::epsilon()) * pi;
+    for (const std::vector<double>& c : series) {
+        const int order = static_cast<int>(c.size());
+        double previous = -1;
+        for (int i = 0; i <= 200; ++i) {
+            const double u = i / 200.0 * (1 - 1e-12);
+            const double phi = stratum::detail::sample_cosine_series(c.data(), order, u);
+            double G = c[0] * phi;
+            for (int k = 1; k < order; ++k) G += c[static_cast<std::size_t>(k)] * std::sin(k * phi) / k;
+            CAPTURE(order);
+            CAPTURE(u);
+            REQUIRE(phi >= 0);
+            REQUIRE(phi <= pi);
+            CHECK(std::fabs(G - u * c[0] * pi) <= 4 * residual * c[0]);
+            if (order != 3) CHECK(phi >= previous);  // (the dipping series' G is not monotone: any root will do)
+            previous = phi;
+        }
+    }
 }
 
 TEST_CASE("the table's surface lobe: RoughDielectric's brdf and reflection density, shadowing from a table of A(mu)") {

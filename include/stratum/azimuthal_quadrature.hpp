@@ -44,6 +44,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <type_traits>
 #include <vector>
 
@@ -216,8 +217,19 @@ public:
     CosineMoments(const CosineMoments&) = delete;
     CosineMoments& operator=(const CosineMoments&) = delete;
 
-    // Adds f cos(k phi) for the sample with c = cos(phi), s = sin(phi).
+    // Adds f cos(k phi) for the sample with c = cos(phi), s = sin(phi). An infinite (or NaN) f is added at once by
+    // the rotation recurrence, as f cos(k phi) (the blocks would turn inf into NaN: inf x 0, inf - inf).
     void add(Real f, Real c, Real s) noexcept {
+        if (!(std::fabs(f) <= std::numeric_limits<Real>::max())) {
+            Real ck = 1, sk = 0;
+            for (int k = 0; k < modes_; ++k) {
+                out_[k] += f * ck;
+                const Real next = ck * c - sk * s;
+                sk = sk * c + ck * s;
+                ck = next;
+            }
+            return;
+        }
         const int side = c < 0 ? 1 : 0;
         Block& b = blocks_[side];
         b.f[b.count] = f;
@@ -239,7 +251,10 @@ private:
 
     void flush(int side) noexcept {
         Block& b = blocks_[side];
-        if (b.count == 0) return;
+        if (b.count == 0 || modes_ < 1) {  // (modes < 1: nothing to write)
+            b.count = 0;
+            return;
+        }
         for (int l = b.count; l < kLanes; ++l) b.f[l] = b.mu[l] = Real(0);
         Real S[kLanes], D[kLanes];
         Real sum = 0;

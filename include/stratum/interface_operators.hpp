@@ -30,7 +30,8 @@ namespace stratum {
 // Propagation-direction adapter (the same for all four): the incident propagation direction has azimuth 0,
 //   from above: wi = (-s_in, 0, mu_in);   from below: wi = (-s_in, 0, -mu_in)   (wi points away, pbrt),
 //   outgoing:   wo = (s_out cos phi, s_out sin phi, +-mu_out), + for light leaving upwards,
-// with s = sqrt(1 - mu^2), and rho = RoughDielectric::brdf(wi, wo) or btdf(wi, wo). (This equals
+// with s = sqrt(1 - mu^2), and rho = RoughDielectric::brdf(wi, wo) or btdf(wi, wo) (evaluated as facet_brdf or
+// facet_btdf times shadowing_over_cosines, the second once per pair of cosines: equal within a few ulp). (This equals
 // RoughDielectric::eval_propagation; building wo from cos and sin phi separately keeps full accuracy for
 // lobes narrower than 1e-4 rad, where sin phi recovered from cos phi would not.)
 //
@@ -246,16 +247,18 @@ public:
         };
         // Shadowing::masking_only (G1 of the incident direction alone) is not reciprocal: no mirroring then.
         const bool reciprocal = interface.shadowing() != Shadowing::masking_only;
-        if (!reciprocal) {
-            const auto build = [&](Incidence side, bool transmission) {
-                const detail::RoughKernel<Real> kernel{&*rough_, side, transmission};
-                return fourier_operators(kernel, [&kernel](Real x, Real y) { return kernel.features(x, y); },
-                                         ordinates, modes, rule_);
-            };
-            r12_ = build(Incidence::from_above, false);
-            t12_ = build(Incidence::from_above, true);
-            r21_ = build(Incidence::from_below, false);
-            t21_ = build(Incidence::from_below, true);
+        if (!reciprocal) {  // every entry integrated (through coefficients(): the shadowing once per pair)
+            for (int side = 0; side < 2; ++side)
+                for (int lobe = 0; lobe < 2; ++lobe) {
+                    FourierOperators<Real>& op = lobe == 0 ? (side == 0 ? r12_ : r21_) : (side == 0 ? t12_ : t21_);
+                    for (int a = 0; a < m; ++a)
+                        for (int b = 0; b < m; ++b) {
+                            coefficients(side == 0 ? Incidence::from_above : Incidence::from_below, lobe == 1,
+                                         ordinates.nodes[static_cast<std::size_t>(a)],
+                                         ordinates.nodes[static_cast<std::size_t>(b)], c.data());
+                            for (int k = 0; k < modes; ++k) op(k, b, a) = weight(a) * c[static_cast<std::size_t>(k)];
+                        }
+                }
             if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates);
             return;
         }
@@ -440,7 +443,9 @@ public:
         coefficients(side, transmission, mu_in, mu_out, out, modes_);
     }
     /// The first `modes` (1 <= modes <= modes()) coefficients only, from an azimuthal rule that resolves just
-    /// those (fewer samples; equal to the full call's within the rule's error).
+    /// those (fewer samples). Equal to the full call's within that rule's error: measured 2.3e-13 relative for
+    /// transmission; for reflection inside the denser medium at sigma >= 1, where the rule of one mode has few
+    /// panels, up to 2.6e-6 (1.7e-5 at sigma 3, n 1 | 1.05; found by review).
     void coefficients(Incidence side, bool transmission, Real mu_in, Real mu_out, Real* out, int modes) const noexcept {
         if (specular_) {
             for (int k = 0; k < modes; ++k) out[k] = Real(0);

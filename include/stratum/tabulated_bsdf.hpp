@@ -8,6 +8,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -142,19 +143,46 @@ Real cosine_series(const Real* c, int order, Real x, int stride = 1) noexcept {
     return c[0] + x * b1 - b2;
 }
 
+// sin(m pi / 16), m = 0..31 (the coarse bracket of sample_cosine_series).
+template <class Real>
+const Real* sixteenth_sines() noexcept {
+    static const auto table = [] {
+        std::array<Real, 32> t{};
+        for (int m = 0; m < 32; ++m) t[static_cast<std::size_t>(m)] = static_cast<Real>(std::sin(pi_v<long double> * m / 16));
+        return t;
+    }();
+    return table.data();
+}
+
 // Samples phi in [0, pi] with density proportional to g(phi) = sum_k c_k cos(k phi) (c_0 > 0, order <= 256) by
-// inverting G(phi) = c_0 phi + sum_{k >= 1} c_k sin(k phi) / k = u c_0 pi: Newton's method kept inside a bracket
-// that bisection shrinks, stopped at a residual of eps^(2/3) c_0 pi (Newton's next step would reach rounding; the
-// caller evaluates pdf at the phi returned, so a residual moves the sample, never the density it reports).
-// Where the truncated series dips below 0 the CDF is not monotone; the root found is still in [0, pi] and the
-// caller's pdf (the clamped g) tells the truth about it.
+// inverting G(phi) = c_0 phi + sum_{k >= 1} c_k sin(k phi) / k = u c_0 pi. A coarse pass brackets the root between
+// two of phi_j = j pi / 16 (G there from a table of sines, no sincos) and starts from the secant in the bracket;
+// then Newton's method kept inside the bracket, which bisection shrinks, stopped at a residual of eps^(2/3) c_0 pi
+// (Newton's next step would reach rounding; the caller evaluates pdf at the phi returned, so a residual moves the
+// sample, never the density it reports). Where the truncated series dips below 0 the CDF is not monotone; the
+// bracket still holds a root (G(lo) <= target < G(hi)), and the caller's pdf (the clamped g) tells the truth.
 template <class Real>
 Real sample_cosine_series(const Real* c, int order, Real u) noexcept {
     const Real pi = pi_v<Real>, target = u * c[0] * pi;
     const Real tolerance = std::cbrt(std::numeric_limits<Real>::epsilon() * std::numeric_limits<Real>::epsilon()) * c[0] * pi;
     Real b[256];  // c_k / k
     for (int k = 1; k < order; ++k) b[k] = c[k] / Real(k);
-    Real lo = 0, hi = pi, phi = u * pi;
+    const Real* sines = sixteenth_sines<Real>();
+    Real lo = 0, hi = pi, g_lo = 0, g_hi = c[0] * pi;
+    for (int j = 1; j < 16; ++j) {
+        const Real phi_j = pi * Real(j) / 16;
+        Real G = c[0] * phi_j;
+        for (int k = 1; k < order; ++k) G += b[k] * sines[(k * j) & 31];
+        if (G > target) {
+            hi = phi_j;
+            g_hi = G;
+            break;
+        }
+        lo = phi_j;
+        g_lo = G;
+    }
+    Real phi = g_hi > g_lo ? lo + (hi - lo) * ((target - g_lo) / (g_hi - g_lo)) : (lo + hi) / 2;
+    phi = phi > lo && phi < hi ? phi : (lo + hi) / 2;
     for (int it = 0; it < 60; ++it) {
         const Real cp = std::cos(phi), sp = std::sin(phi);
         Real G = c[0] * phi, g = c[0];
@@ -233,30 +261,31 @@ struct SurfaceLobe {
         }
     }
 
-    // A(mu) for the direction w (mu = w.z > 0; s from its x and y).
-    Real projected_area(Vec3<Real> w) const noexcept {
-        const Real s = std::sqrt(w.x * w.x + w.y * w.y);
-        const Real x = w.z / (alpha * s) * (Real(kIntervals) / kLast);  // a in units of the table's step
-        if (!(x < Real(kIntervals))) return w.z;                          // (also s = 0)
+    // A(mu), mu in [0, 1] (s from mu, as RoughDielectric does: a direction is its cosine, whatever its length).
+    Real projected_area(Real mu) const noexcept {
+        const Real s = std::sqrt((1 - mu) * (1 + mu));
+        const Real x = mu / (alpha * s) * (Real(kIntervals) / kLast);  // a in units of the table's step
+        if (!(x < Real(kIntervals))) return mu;                          // (also s = 0)
         const int first = std::min(std::max(static_cast<int>(x) - 1, 0), kIntervals - 3);
         const Real t = x - Real(first);  // the nodes first .. first + 3 at t = 0 .. 3
         const Real t1 = t - 1, t2 = t - 2, t3 = t - 3;
         const Real* f = l.data() + first;
         const Real value = -t1 * t2 * t3 / 6 * f[0] + t * t2 * t3 / 2 * f[1] - t * t1 * t3 / 2 * f[2] + t * t1 * t2 / 6 * f[3];
-        return w.z + alpha * s * value;
+        return mu + alpha * s * value;
     }
 
     // brdf(wi, wo) for wi and wo above.
     Real brdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
         const wide_t<Real> facet = interface.facet_brdf(wi, wo);
         if (!(facet > 0)) return Real(0);
-        const Real ai = projected_area(wi), ao = projected_area(wo);
+        const Real mi = clamp_unit(wi.z), mo = clamp_unit(wo.z);
+        const Real ai = projected_area(mi), ao = projected_area(mo);
         Real denominator;
         switch (interface.shadowing()) {
             case Shadowing::separable: denominator = ai * ao; break;
-            case Shadowing::masking_only: denominator = ai * wo.z; break;
+            case Shadowing::masking_only: denominator = ai * mo; break;
             case Shadowing::height_correlated:
-            default: denominator = ai * wo.z + ao * wi.z - wi.z * wo.z;
+            default: denominator = ai * mo + ao * mi - mi * mo;
         }
         return saturate_to<Real>(facet / static_cast<wide_t<Real>>(denominator));
     }
@@ -267,7 +296,8 @@ struct SurfaceLobe {
         const Vec3<Real> h = normalize(wi + wo);
         if (!(dot(wo, h) > 0) || !(dot(wi, h) > 0)) return Real(0);
         const Real d = interface.distribution().D(h);
-        return d > 0 ? d / (4 * projected_area(wi)) : Real(0);
+        return d > 0 ? saturate_to<Real>(static_cast<wide_t<Real>>(d) / (4 * static_cast<wide_t<Real>>(projected_area(clamp_unit(wi.z)))))
+                     : Real(0);
     }
 };
 
@@ -596,7 +626,8 @@ private:
         std::size_t bytes() const noexcept {
             const std::size_t reals = t.size() + jacobian.size() + reflection.coeffs.size() + reflection.cdf.size() +
                                       transmission.coeffs.size() + transmission.cdf.size() + surface_albedo.size() +
-                                      beam_reflected.size() + beam_transmitted.size() + luminance.size();
+                                      beam_reflected.size() + beam_transmitted.size() + luminance.size() +
+                                      (surface_lobe ? surface_lobe->l.size() : std::size_t(0));
             return sizeof(Real) * reals + sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size());
         }
         detail::SplineWeights<Real> weights(Real mu) const noexcept {
