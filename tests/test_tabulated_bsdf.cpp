@@ -382,6 +382,17 @@ TEST_CASE("TabulatedBSDF: non-unit directions give finite values (found by fuzz_
             CHECK(std::isfinite(p));
             CHECK(p >= 0);
         }
+    // A wi near the largest double, from below on a two-sided table, sampled the surface lobe's mirror direction as
+    // inf - inf, a "valid" sample of direction (nan, nan, -inf) (found by fuzz_renderer): now an invalid sample.
+    const TabulatedBSDF<double> two(layer, layer, 3e-2);
+    for (const Vec3<double>& wi : {Vec3<double>{-2.6055605938966872e+224, -3.1646401772409293e-277, -1.2920927960622721e+308},
+                                   Vec3<double>{1e300, 1e300, 1e300}, Vec3<double>{0, 0, 1e-310}}) {
+        for (const double u : {0.0, 0.3, 0.99}) {
+            const auto s = two.sample(wi, u, u, u);
+            CAPTURE(u);
+            CHECK((!s.valid() || (stratum::all_finite(s.wo) && std::isfinite(s.pdf) && s.pdf > 0)));
+        }
+    }
 }
 
 TEST_CASE("sample_cosine_series inverts G(phi) = c_0 phi + sum c_k sin(k phi) / k, peaked, flat and dipping series") {
