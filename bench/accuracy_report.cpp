@@ -13,6 +13,7 @@
 #include <functional>
 #include <string>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "accuracy_modules.hpp"
@@ -76,6 +77,63 @@ void layer_ordinates() {
         const double eval_us = 1e3 * median_ms([&] { for (int i = 0; i < 20; ++i) sink += layer.subsurface_brdf(wi, wo, ws); }, 3) / 20;
         std::printf("| %d | %d | %.1e | %.1e | %.1e | %.1f | %.0f |\n", m, layer.modes(), e_flux,
                     max_relative(p.brdf, ref.brdf, 4), max_relative(p.btdf, ref.btdf, 4), t, eval_us + 0 * sink);
+    }
+}
+
+// ---- Layer solver: how each piece grows with M ------------------------------------------------------------
+// Least-squares slope of log(time) against log(M) over the M measured.
+double growth_exponent(const std::vector<int>& ms, const std::vector<double>& times) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    const double n = static_cast<double>(ms.size());
+    for (std::size_t i = 0; i < ms.size(); ++i) {
+        const double x = std::log(static_cast<double>(ms[i])), y = std::log(times[i]);
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        sxy += x * y;
+    }
+    return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+void layer_growth() {
+    const stratum::RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const auto slab = stratum::Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    const std::vector<int> ms = {8, 12, 16, 24, 32, 48};
+    std::vector<double> plain, totals, prepared, full;
+    for (int m : ms) {
+        stratum::LayerOptions o;
+        o.ordinates = m;
+        const stratum::Quadrature<double> q = stratum::gauss_legendre_half<double>(m);
+        double sink = 0;
+        plain.push_back(median_ms([&] {
+            sink += stratum::InterfaceOperators<double>(top, q, 2 * m, stratum::AzimuthalQuadrature<double>(),
+                                                       stratum::Renormalization::none).R12()(0, 0, 0);
+        }, 3));
+        const double renormalized = median_ms([&] {
+            sink += stratum::InterfaceOperators<double>(top, q, 2 * m, stratum::AzimuthalQuadrature<double>(),
+                                                       stratum::Renormalization::hemispherical_totals).R12()(0, 0, 0);
+        }, 3);
+        totals.push_back(std::max(renormalized - plain.back(), 1e-3));
+        const stratum::PreparedBoundary<double> pt(top, o), pb = pt.turned_over();
+        prepared.push_back(median_ms([&] { sink += stratum::solve_layer(slab, pt, pb).modes(); }, 3));
+        full.push_back(median_ms([&] { sink += stratum::solve_layer(slab, top, bottom, o).modes(); }, 3) + 0 * sink);
+    }
+    std::printf("\n## Layer solver: growth of each piece with M\n\nStam's skin layer, K = 2M modes, all outputs. "
+                "One rough face's operators (azimuthal integrals, no renormalization); the renormalization's 2M "
+                "hemispherical integrals (the difference with it); the solve from prepared faces (the slab's 2M "
+                "mode solutions and the adding); the solve from nothing (the bottom face is the top turned over, "
+                "built once). Exponent: least-squares slope of log(time) against log(M).\n\n");
+    std::printf("| piece |");
+    for (int m : ms) std::printf(" M = %d (ms) |", m);
+    std::printf(" exponent |\n|---|");
+    for (std::size_t i = 0; i <= ms.size(); ++i) std::printf("---|");
+    std::printf("\n");
+    const std::pair<const char*, const std::vector<double>*> rows[] = {
+        {"face operators", &plain}, {"renormalization", &totals}, {"solve, prepared faces", &prepared}, {"solve from nothing", &full}};
+    for (const auto& row : rows) {
+        std::printf("| %s |", row.first);
+        for (double t : *row.second) std::printf(" %.3g |", t);
+        std::printf(" %.2f |\n", growth_exponent(ms, *row.second));
     }
 }
 
@@ -426,6 +484,7 @@ int main() {
     stratum_accuracy::report_henyey_greenstein();
     stratum_accuracy::report_interface_operators();
     layer_ordinates();
+    layer_growth();
     layer_tolerance();
     layer_smooth_faces();
     tabulated_bsdf_tolerance();
