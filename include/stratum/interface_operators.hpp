@@ -10,6 +10,7 @@
 #include <limits>
 #include <optional>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "azimuthal_quadrature.hpp"
@@ -226,8 +227,8 @@ public:
             // top, then equals top.flipped() bit for bit, which lets a solve reuse one face for both.
             *this = InterfaceOperators(RoughDielectric<Real>(interface.sigma(), interface.eta_below(),
                                                              interface.eta_above(), interface.shadowing()),
-                                       ordinates, modes, rule, renormalization)
-                        .flipped();
+                                       ordinates, modes, rule, renormalization);
+            turn_over();
             return;
         }
         // Reciprocity halves the work (and makes the matrices reciprocal to the last bit):
@@ -403,10 +404,7 @@ public:
     /// sigma 0.3, n 1 | 1.4, M = 16, 32 modes). The cost of a copy.
     InterfaceOperators flipped() const {
         InterfaceOperators out = *this;
-        if (rough_) out.rough_.emplace(rough_->sigma(), rough_->eta_below(), rough_->eta_above(), rough_->shadowing());
-        std::swap(out.r12_, out.r21_);
-        std::swap(out.t12_, out.t21_);
-        std::swap(out.totals_above_, out.totals_below_);
+        out.turn_over();
         return out;
     }
 
@@ -512,6 +510,14 @@ private:
                 }
             }
         }
+    }
+
+    // flipped() in place: the indices exchanged, the sides' operators and totals swapped.
+    void turn_over() {
+        if (rough_) rough_.emplace(rough_->sigma(), rough_->eta_below(), rough_->eta_above(), rough_->shadowing());
+        std::swap(r12_, r21_);
+        std::swap(t12_, t21_);
+        std::swap(totals_above_, totals_below_);
     }
 
     void set_index_matched(int m) {
