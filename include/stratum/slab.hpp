@@ -435,6 +435,61 @@ void check_ordinates(const Quadrature<Real>& q) {
 
 }  // namespace detail
 
+namespace detail {
+
+/// One mode of a bare slab as solved: whether it scatters (if not, R = 0 and T = diag(e^{-tau/mu}), or T = I at
+/// tau = 0, with no eigen-solution), and otherwise its eigen-solution and the scaled R~ = C R C^{-1}, T~ = C T C^{-1},
+/// C = diag(sqrt(w mu)). The beam source (detail/beam_source.hpp) needs all three.
+template <class Real>
+struct SlabModeSolution {
+    bool scatters = false;
+    SlabEigensystem<Real> eigen;
+    Matrix<Real> r_scaled, t_scaled;
+};
+
+template <class Real>
+SlabModeSolution<Real> slab_mode_solution(const Slab<Real>& slab, const Quadrature<Real>& ordinates, const Real* p_same,
+                                          const Real* p_opposite, int k, bool regularize_aliased_phase) {
+    SlabModeSolution<Real> out;
+    const std::size_t m_size = ordinates.size();
+    const Real tau = slab.optical_thickness();
+    if (tau == Real(0) || !(slab.one_minus_albedo() < Real(1))) return out;
+    for (std::size_t i = 0; i < m_size * m_size && !out.scatters; ++i)
+        out.scatters = p_same[i] != Real(0) || p_opposite[i] != Real(0);
+    if (!out.scatters) return out;
+    out.eigen = slab_eigensystem(slab.one_minus_albedo(), ordinates.nodes, ordinates.weights, p_same, p_opposite, k,
+                                 regularize_aliased_phase);
+    slab_boundary_solve(out.eigen, tau, out.r_scaled, out.t_scaled);
+    return out;
+}
+
+/// R and T of a solved mode (see SlabModeSolution).
+template <class Real>
+SlabModeOperators<Real> slab_mode_operators(const SlabModeSolution<Real>& solution, const Quadrature<Real>& ordinates,
+                                            Real tau) {
+    const std::size_t m_size = ordinates.size();
+    SlabModeOperators<Real> out;
+    out.size = m_size;
+    out.reflection.assign(m_size * m_size, Real(0));
+    out.transmission.assign(m_size * m_size, Real(0));
+    if (!solution.scatters) {  // only the unscattered beam (all of it at tau = 0)
+        for (std::size_t i = 0; i < m_size; ++i)
+            out.transmission[i * m_size + i] = std::isinf(tau) ? Real(0) : std::exp(-tau / ordinates.nodes[i]);
+        return out;
+    }
+    std::vector<Real> c(m_size);
+    for (std::size_t i = 0; i < m_size; ++i) c[i] = std::sqrt(ordinates.weights[i] * ordinates.nodes[i]);
+    for (std::size_t i = 0; i < m_size; ++i)
+        for (std::size_t j = 0; j < m_size; ++j) {
+            const Real scale = c[j] / c[i];
+            out.reflection[i * m_size + j] = solution.r_scaled(i, j) * scale;
+            out.transmission[i * m_size + j] = solution.t_scaled(i, j) * scale;
+        }
+    return out;
+}
+
+}  // namespace detail
+
 /// Reflection and transmission operators of a bare slab for Fourier mode k >= 0.
 ///   ordinates:  half-range rule on (0, 1] (e.g. gauss_legendre_half<Real>(M)), weights > 0;
 ///   p_same:     M x M row-major, p_same[n M + m] = p_k(mu_m, mu_n)   (Stam's normalization, see top);
@@ -461,40 +516,9 @@ SlabModeOperators<Real> solve_slab_mode(const Slab<Real>& slab, const Quadrature
                                         bool regularize_aliased_phase = false) {
     detail::check_ordinates(ordinates);
     detail::require_count("k", k, 0);
-    const std::size_t m_size = ordinates.size();
-    const Real tau = slab.optical_thickness();
-    SlabModeOperators<Real> out;
-    out.size = m_size;
-    out.reflection.assign(m_size * m_size, Real(0));
-    out.transmission.assign(m_size * m_size, Real(0));
-    if (tau == Real(0)) {
-        for (std::size_t i = 0; i < m_size; ++i) out.transmission[i * m_size + i] = Real(1);
-        return out;
-    }
-    bool scatters = slab.one_minus_albedo() < Real(1);
-    if (scatters) {
-        scatters = false;
-        for (std::size_t i = 0; i < m_size * m_size; ++i)
-            if (p_same[i] != Real(0) || p_opposite[i] != Real(0)) scatters = true;
-    }
-    if (!scatters) {  // only the unscattered beam
-        for (std::size_t i = 0; i < m_size; ++i)
-            out.transmission[i * m_size + i] = std::isinf(tau) ? Real(0) : std::exp(-tau / ordinates.nodes[i]);
-        return out;
-    }
-    const detail::SlabEigensystem<Real> es = detail::slab_eigensystem(
-        slab.one_minus_albedo(), ordinates.nodes, ordinates.weights, p_same, p_opposite, k, regularize_aliased_phase);
-    detail::Matrix<Real> r_scaled, t_scaled;
-    detail::slab_boundary_solve(es, tau, r_scaled, t_scaled);
-    std::vector<Real> c(m_size);
-    for (std::size_t i = 0; i < m_size; ++i) c[i] = std::sqrt(ordinates.weights[i] * ordinates.nodes[i]);
-    for (std::size_t i = 0; i < m_size; ++i)
-        for (std::size_t j = 0; j < m_size; ++j) {
-            const Real scale = c[j] / c[i];
-            out.reflection[i * m_size + j] = r_scaled(i, j) * scale;
-            out.transmission[i * m_size + j] = t_scaled(i, j) * scale;
-        }
-    return out;
+    return detail::slab_mode_operators(
+        detail::slab_mode_solution(slab, ordinates, p_same, p_opposite, k, regularize_aliased_phase), ordinates,
+        slab.optical_thickness());
 }
 
 /// Overload taking the phase matrices as std::vector (size M * M each).

@@ -1,0 +1,354 @@
+// stratum/detail/beam_source.hpp -- a bare slab's diffuse response to a collimated beam at any cosine x, on the
+// ordinates and at any exit cosine y: the beam as a source and intensities at user angles (docs/physics.md
+// section 6). Not part of the API: LayeredSurface uses it between specular faces.
+//
+// Notation of slab.hpp: tau downwards, u+ (up) and u- (down) the mode-k radiance at the ordinates,
+//     d/dtau [u+; u-] = [[-A, -B], [B, A]] [u+; u-] + source,
+// and its eigen-solution in the scaled variables (C = diag(sqrt(w mu)), Y^T N = I):
+//     A + B = -C^{-1} Y Lambda^2 Y^T C,   A - B = -C^{-1} N N^T C.
+//
+// The beam. A collimated beam of unit irradiance on a horizontal plane, travelling down at cosine x and attenuated
+// as e^{-tau/x}, is to mode k what "w u = beta" at x would be, beta = (2 - delta_k0) / (2 pi x) (a delta in azimuth).
+// Its first scattering is the source, times e^{-tau/x},
+//     q-_n = Omega_k beta p_k(x, mu_n) / mu_n,   q+_n = -Omega_k beta p_k(-x, mu_n) / mu_n.
+// The particular solution Z e^{-tau/x} follows with s = u+ + u-, d = u+ - u- from
+//     [(A - B)(A + B) - x^{-2}] Zs = (A - B) qd + qs / x,   Zd = x [(A + B) Zs - qd],
+// which the eigenbasis diagonalizes (~: times C):
+//     Zs~ = N a,   a_j = (Y^T qs~ / x - N^T qd~)_j / (lambda_j^2 - x^{-2}),   Zd~ = -x (Y Lambda^2 a + qd~).
+// Black boundaries: the homogeneous part cancels the particular part's incoming radiance, -Z-(0) at the top and
+// -Z+ e^{-tau/x} at the bottom, and is the slab's own response to it (R and T of slab.hpp):
+//     up   (leaving the top)    = Z+ - R Z- - T Z+ e^{-tau/x},
+//     down (leaving the bottom) = Z- e^{-tau/x} - T Z- - R Z+ e^{-tau/x}.
+// Resonance: 1/x = lambda_j makes Z infinite while the response stays finite (a secular term tau e^{-tau/x}).
+// Within a relative s = 4 sqrt(eps) of it the response is interpolated linearly between x (1 - 2s) and x (1 + 2s)
+// (or extrapolated from x (1 - 2s) and x (1 - 4s) where x (1 + 2s) > 1). The interpolation costs O(s^2) times the
+// response's curvature (which reaches 4e2 relative near an ordinate, where the weakly scattering high modes have
+// lambda ~ 1/mu_j: 1.4e-8 with s = eps^{1/3}, measured); the cancellation between Z and the homogeneous part grows
+// only slowly as the distance shrinks (4e-16 at a relative distance 6e-8, measured), so a small s wins: within
+// 1e-12 relative of the slab's own R and T at the ordinates, where resonances are closest (tests).
+//
+// Exit at any cosine y (DISORT's intensities at user angles, Stamnes et al. 1988): the radiance at y integrates
+// the source function along the path at y. For the particular part, whose source is sigma e^{-tau/x}, in closed form:
+//     up at the top:      sigma+ (1 - e^{-(a+b) tau}) / ((a + b) y),
+//     down at the bottom: sigma- (e^{-a tau} - e^{-b tau}) / ((b - a) y),       a = 1/x, b = 1/y,
+//     sigma+ = Omega_k [sum_m w_m (p_k(y, mu_m) Z+_m + p_k(-y, mu_m) Z-_m) + beta p_k(-x, y)],
+//     sigma- = Omega_k [sum_m w_m (p_k(y, mu_m) Z-_m + p_k(-y, mu_m) Z+_m) + beta p_k(x, y)];
+// for the homogeneous part by reciprocity: the radiance at y per unit radiance entering at ordinate m is
+//     row_m(y) = w_m mu_m (2 pi / (2 - delta_k0)) response_m(beam at y)
+// (the discrete equations with y added as an ordinate of weight -> 0 are reciprocal, and a beam at y is radiance
+// (2 - delta_k0) / (2 pi w_y y) there). tests/test_beam_source.cpp checks both against the slab's own R and T at
+// the ordinates.
+//
+// Energy: where the ordinates' rule is not a plain Gauss rule (split at critical cosines) the truncated phase
+// function does not integrate to 1 over it; the ordinates' phase matrices are corrected for that (layer.hpp,
+// make_discretely_conservative), and so is the beam's mode 0 here, by the factor that makes
+// sum_m w_m (p_0(x, mu_m) + p_0(-x, mu_m)) = 2: every bit of energy the beam loses is scattered.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <vector>
+
+#include "../henyey_greenstein.hpp"
+#include "../legendre.hpp"
+#include "../slab.hpp"
+#include "linalg.hpp"
+#include "math.hpp"
+
+namespace stratum {
+namespace detail {
+
+/// p_k(x, mu_m) and p_k(-x, mu_m) for every mode k and ordinate mu_m, at any x in (0, 1], from the Legendre moments
+/// chi (henyey_greenstein.hpp's normalization): the ordinates' normalized associated Legendre values are
+/// tabulated once (times (2 - delta_k0)(2n + 1) chi_n), so that a new x costs one recurrence per mode and
+/// K N M / 2 multiply-adds.
+template <class Real>
+class PhaseAtOrdinates {
+public:
+    PhaseAtOrdinates() = default;
+    PhaseAtOrdinates(std::vector<Real> chi, const std::vector<Real>& mu, const std::vector<Real>& w, int modes)
+        : chi_(std::move(chi)), w_(w), size_(mu.size()), modes_(modes), degree_(static_cast<int>(chi_.size()) - 1) {
+        const int top = std::min(modes_ - 1, degree_);
+        table_.resize(static_cast<std::size_t>(top + 1));
+        coef_.resize(static_cast<std::size_t>(top + 1));
+        std::vector<SectoralSeed<Real>> seeds;
+        for (const Real x : mu) seeds.emplace_back(x);
+        for (int k = 0; k <= top; ++k) {
+            const auto count = static_cast<std::size_t>(degree_ - k + 1);
+            std::vector<Real>& t = table_[static_cast<std::size_t>(k)];
+            std::vector<LambdaCoefficients<Real>>& c = coef_[static_cast<std::size_t>(k)];
+            t.assign(count * size_, Real(0));
+            c.resize(count);
+            for (std::size_t j = 1; j < count; ++j) c[j] = LambdaCoefficients<Real>::at(k + static_cast<int>(j), k);
+            for (std::size_t m = 0; m < size_; ++m) {
+                if (k > 0) seeds[m].next();
+                LambdaStepper<Real> st(seeds[m], mu[m]);
+                for (std::size_t j = 0; j < count; ++j) {
+                    if (j > 0) st.step(c[j]);
+                    t[j * size_ + m] = weight(k, j) * st.value();
+                }
+            }
+        }
+    }
+
+    int modes() const noexcept { return modes_; }
+
+    /// same[k M + m] = p_k(x, mu_m), opposite[k M + m] = p_k(-x, mu_m) for k < modes (each K * M long); mode 0
+    /// rescaled to conserve energy on the ordinates (see the top of this file). scratch: resized as needed.
+    void at(Real x, Real* same, Real* opposite, int modes, std::vector<Real>& scratch) const {
+        const std::size_t m_size = size_;
+        SectoralSeed<Real> seed(x);
+        for (int k = 0; k < modes; ++k) {
+            Real* s = same + static_cast<std::size_t>(k) * m_size;
+            Real* o = opposite + static_cast<std::size_t>(k) * m_size;
+            if (k >= static_cast<int>(table_.size())) {
+                std::fill(s, s + m_size, Real(0));
+                std::fill(o, o + m_size, Real(0));
+                continue;
+            }
+            if (k > 0) seed.next();
+            const std::vector<Real>& t = table_[static_cast<std::size_t>(k)];
+            const std::vector<LambdaCoefficients<Real>>& c = coef_[static_cast<std::size_t>(k)];
+            const std::size_t count = c.size();
+            scratch.resize(count + 2 * m_size);
+            Real *lam = scratch.data(), *even = lam + count, *odd = even + m_size;
+            LambdaStepper<Real> st(seed, x);
+            for (std::size_t j = 0; j < count; ++j) {
+                if (j > 0) st.step(c[j]);
+                lam[j] = st.value();
+            }
+            std::fill(even, even + 2 * m_size, Real(0));
+            for (std::size_t j = 0; j < count; ++j) {  // degrees n = k + j; Lambda_n^k(-x) = (-1)^j Lambda_n^k(x)
+                Real* acc = j % 2 == 0 ? even : odd;
+                const Real* row = t.data() + j * m_size;
+                for (std::size_t m = 0; m < m_size; ++m) acc[m] += lam[j] * row[m];
+            }
+            for (std::size_t m = 0; m < m_size; ++m) {
+                s[m] = even[m] + odd[m];
+                o[m] = even[m] - odd[m];
+            }
+        }
+        if (modes < 1) return;
+        Real sum = 0;
+        for (std::size_t m = 0; m < m_size; ++m) sum += w_[m] * (same[m] + opposite[m]);
+        const Real tolerance = Real(64) * Real(m_size) * std::numeric_limits<Real>::epsilon();
+        if (sum > 0 && std::fabs(sum / 2 - 1) > tolerance)
+            for (std::size_t m = 0; m < m_size; ++m) same[m] *= 2 / sum, opposite[m] *= 2 / sum;
+    }
+
+    /// p_k(x, y) for two arbitrary cosines in [-1, 1] (not rescaled: single scattering between two true directions).
+    Real between(Real x, Real y, int k) const noexcept { return phase_fourier_coefficient(chi_, x, y, k); }
+
+private:
+    Real weight(int k, std::size_t j) const noexcept {
+        const std::size_t n = static_cast<std::size_t>(k) + j;
+        return (k == 0 ? Real(1) : Real(2)) * static_cast<Real>(2 * n + 1) * chi_[n];
+    }
+    std::vector<Real> chi_, w_;
+    std::size_t size_ = 0;
+    int modes_ = 0, degree_ = 0;
+    std::vector<std::vector<Real>> table_;                    // per k: weight * Lambda_{k+j}^k(mu_m) at [j M + m]
+    std::vector<std::vector<LambdaCoefficients<Real>>> coef_;  // per k: the recurrence's coefficients, degree k + j
+};
+
+/// One Fourier mode of a solved slab, as the beam source needs it (slab.hpp's SlabModeSolution and Omega_k).
+template <class Real>
+struct SlabBeamMode {
+    bool scatters = false;  // false: nothing is scattered in this mode (every response 0)
+    Real omega_k = 0;       // Omega (1 + delta_k0) / 4
+    std::vector<Real> lambda;
+    Matrix<Real> n, y;      // eigen columns (scaled variables)
+    Matrix<Real> r, t;      // R~ and T~ (scaled variables)
+};
+
+/// The response of a slab to a beam at cosine x, per mode (K blocks of M): the diffuse radiance leaving the top
+/// (up) and the bottom (down) at the ordinates, and what the exit at a user angle needs: per evaluation point
+/// (one, or two near a resonance) its cosine, interpolation weight, Z+ and Z- (unscaled), e^{-tau/x}, and the
+/// phase rows p_k(+-x, mu_m).
+template <class Real>
+struct BeamResponse {
+    struct Point {
+        Real x = 0, weight = 0;
+        std::vector<Real> zp, zm, e;  // e: per mode, e^{-tau/x} (the same for every mode; kept per point)
+    };
+    Real x = 0;
+    int modes = 0;
+    int points = 0;
+    Point point[2];
+    std::vector<Real> up, down;           // K blocks of M
+    std::vector<Real> same, opposite;     // p_k(x, mu_m), p_k(-x, mu_m) at the true x (K blocks of M)
+};
+
+/// A slab's beam source: its ordinates, its (delta-M scaled) optical thickness and phase function, and its solved
+/// modes. respond() gives the response to a beam at any cosine, exit() the radiance at any exit cosine.
+template <class Real>
+class SlabBeam {
+public:
+    SlabBeam() = default;
+    SlabBeam(const Quadrature<Real>& q, Real tau, PhaseAtOrdinates<Real> phase)
+        : mu_(q.nodes), w_(q.weights), tau_(tau), phase_(std::move(phase)) {
+        c_.resize(mu_.size());
+        for (std::size_t i = 0; i < mu_.size(); ++i) c_[i] = std::sqrt(w_[i] * mu_[i]);
+    }
+    void add_mode(SlabBeamMode<Real> m) { modes_.push_back(std::move(m)); }
+    int modes() const noexcept { return static_cast<int>(modes_.size()); }
+    Real optical_thickness() const noexcept { return tau_; }
+
+    /// The response to a beam of unit horizontal irradiance entering the top at cosine x in (0, 1], modes < `modes`.
+    void respond(Real x, int modes, BeamResponse<Real>& out, std::vector<Real>& scratch) const {
+        const std::size_t m_size = mu_.size(), kk = static_cast<std::size_t>(modes);
+        out.x = x;
+        out.modes = modes;
+        out.up.assign(kk * m_size, Real(0));
+        out.down.assign(kk * m_size, Real(0));
+        out.same.resize(kk * m_size);
+        out.opposite.resize(kk * m_size);
+        phase_.at(x, out.same.data(), out.opposite.data(), modes, scratch);
+        // Evaluation points: x itself, or two beside a resonance 1/x = lambda_j.
+        const Real s = 4 * std::sqrt(std::numeric_limits<Real>::epsilon());
+        bool near = false;
+        for (std::size_t k = 0; k < kk && !near; ++k)
+            for (const Real l : modes_[k].lambda) near = near || std::fabs(l * x - Real(1)) < s;
+        if (!near) {
+            out.points = 1;
+            out.point[0].x = x;
+            out.point[0].weight = 1;
+        } else {
+            const Real x1 = x * (1 - 2 * s), x2 = x * (1 + 2 * s) <= Real(1) ? x * (1 + 2 * s) : x * (1 - 4 * s);
+            out.points = 2;
+            out.point[0].x = x1;
+            out.point[1].x = x2;
+            out.point[0].weight = (x2 - x) / (x2 - x1);
+            out.point[1].weight = (x - x1) / (x2 - x1);
+        }
+        std::vector<Real> same(kk * m_size), opposite(kk * m_size);
+        for (int p = 0; p < out.points; ++p) {
+            typename BeamResponse<Real>::Point& pt = out.point[p];
+            const Real* ps = out.same.data();
+            const Real* po = out.opposite.data();
+            if (out.points == 2) {
+                phase_.at(pt.x, same.data(), opposite.data(), modes, scratch);
+                ps = same.data();
+                po = opposite.data();
+            }
+            pt.zp.assign(kk * m_size, Real(0));
+            pt.zm.assign(kk * m_size, Real(0));
+            pt.e.assign(kk, std::isinf(tau_) ? Real(0) : std::exp(-tau_ / pt.x));
+            for (std::size_t k = 0; k < kk; ++k)
+                particular(k, pt.x, ps + k * m_size, po + k * m_size, pt.e[k], pt.weight, pt.zp.data() + k * m_size,
+                           pt.zm.data() + k * m_size, out.up.data() + k * m_size, out.down.data() + k * m_size, scratch);
+        }
+    }
+
+    /// Mode k of the diffuse radiance leaving at cosine y in (0, 1] for the beam of `beam`: up at the top (*r) and
+    /// down at the bottom (*t); at_y is the response to a beam at y (respond(y, ...)), whose rows give the
+    /// homogeneous part (see the top of this file).
+    void exit(const BeamResponse<Real>& beam, const BeamResponse<Real>& at_y, int k, Real* r, Real* t) const {
+        *r = *t = 0;
+        const SlabBeamMode<Real>& md = modes_[static_cast<std::size_t>(k)];
+        if (!md.scatters) return;
+        const std::size_t m_size = mu_.size(), off = static_cast<std::size_t>(k) * m_size;
+        const Real y = at_y.x, b = 1 / y, two_pi = 2 * pi_v<Real>, delta = k == 0 ? Real(1) : Real(2);
+        for (int p = 0; p < beam.points; ++p) {
+            const typename BeamResponse<Real>::Point& pt = beam.point[p];
+            const Real* zp = pt.zp.data() + off;
+            const Real* zm = pt.zm.data() + off;
+            const Real e = pt.e[static_cast<std::size_t>(k)], x = pt.x, a = 1 / x;
+            const Real beta = delta / (two_pi * x);
+            Real sigma_up = beta * phase_.between(-x, y, k), sigma_down = beta * phase_.between(x, y, k);
+            Real row_r = 0, row_t = 0;  // row(y) . (-Z-) and row(y) . (-Z+ e) for R and T
+            Real hom_up = 0, hom_down = 0;
+            for (std::size_t m = 0; m < m_size; ++m) {
+                const Real ps = at_y.same[off + m], po = at_y.opposite[off + m];
+                sigma_up += w_[m] * (ps * zp[m] + po * zm[m]);
+                sigma_down += w_[m] * (ps * zm[m] + po * zp[m]);
+                const Real scale = w_[m] * mu_[m] * two_pi / delta;
+                const Real rr = scale * at_y.up[off + m], tt = scale * at_y.down[off + m];
+                hom_up -= rr * zm[m] + tt * zp[m] * e;
+                hom_down -= tt * zm[m] + rr * zp[m] * e;
+            }
+            (void)row_r;
+            (void)row_t;
+            sigma_up *= md.omega_k;
+            sigma_down *= md.omega_k;
+            const Real up_path = std::isinf(tau_) ? Real(1) / ((a + b) * y) : -std::expm1(-(a + b) * tau_) / ((a + b) * y);
+            const Real down_path = exponential_difference(a, b, tau_) / y;
+            *r += pt.weight * (sigma_up * up_path + hom_up);
+            *t += pt.weight * (sigma_down * down_path + hom_down);
+        }
+    }
+
+private:
+    // (e^{-a tau} - e^{-b tau}) / (b - a), a, b > 0, without cancellation or overflow (tau e^{-a tau} at a = b).
+    static Real exponential_difference(Real a, Real b, Real tau) noexcept {
+        if (std::isinf(tau)) return Real(0);
+        const Real lo = std::fmin(a, b), gap = std::fabs(b - a);
+        const Real factor = gap > 0 ? -std::expm1(-gap * tau) / gap : tau;
+        return std::exp(-lo * tau) * factor;
+    }
+
+    // Mode k at one evaluation point x: the particular solution (stored unscaled in zp, zm) and the response,
+    // added to up and down with `weight` (see the top of this file).
+    void particular(std::size_t k, Real x, const Real* p_same, const Real* p_opposite, Real e, Real weight, Real* zp,
+                    Real* zm, Real* up, Real* down, std::vector<Real>& scratch) const {
+        const SlabBeamMode<Real>& md = modes_[k];
+        if (!md.scatters) return;
+        const std::size_t m_size = mu_.size();
+        scratch.resize(6 * m_size);
+        Real *qs = scratch.data(), *qd = qs + m_size, *a = qd + m_size, *zs = a + m_size, *zd = zs + m_size,
+             *inc = zd + m_size;
+        const Real beta = (k == 0 ? Real(1) : Real(2)) / (2 * pi_v<Real> * x);
+        for (std::size_t n = 0; n < m_size; ++n) {  // q~ = C q: sqrt(w mu) / mu = sqrt(w / mu)
+            const Real f = md.omega_k * beta * std::sqrt(w_[n] / mu_[n]);
+            const Real qp = -f * p_opposite[n], qm = f * p_same[n];
+            qs[n] = qp + qm;
+            qd[n] = qp - qm;
+        }
+        const Real xi = 1 / (x * x);
+        for (std::size_t j = 0; j < m_size; ++j) {
+            Real yq = 0, nq = 0;
+            for (std::size_t i = 0; i < m_size; ++i) {
+                yq += md.y(i, j) * qs[i];
+                nq += md.n(i, j) * qd[i];
+            }
+            a[j] = (yq / x - nq) / (md.lambda[j] * md.lambda[j] - xi);
+        }
+        for (std::size_t i = 0; i < m_size; ++i) {
+            Real s = 0, d = 0;
+            for (std::size_t j = 0; j < m_size; ++j) {
+                s += md.n(i, j) * a[j];
+                d += md.y(i, j) * md.lambda[j] * md.lambda[j] * a[j];
+            }
+            zs[i] = s;
+            zd[i] = -x * (d + qd[i]);
+        }
+        // Scaled Z+ = (Zs + Zd) / 2, Z- = (Zs - Zd) / 2; the incoming radiance the homogeneous part cancels:
+        // -Z-(0) at the top, -Z+ e at the bottom (inc holds Z+ e; zs, zd are reused for Z+ and Z-).
+        for (std::size_t i = 0; i < m_size; ++i) {
+            const Real p = (zs[i] + zd[i]) / 2, m = (zs[i] - zd[i]) / 2;
+            zs[i] = p;
+            zd[i] = m;
+            inc[i] = p * e;
+        }
+        for (std::size_t n = 0; n < m_size; ++n) {
+            Real u = zs[n], d = zd[n] * e;
+            for (std::size_t i = 0; i < m_size; ++i) {
+                u -= md.r(n, i) * zd[i] + md.t(n, i) * inc[i];
+                d -= md.t(n, i) * zd[i] + md.r(n, i) * inc[i];
+            }
+            up[n] += weight * u / c_[n];
+            down[n] += weight * d / c_[n];
+            zp[n] = zs[n] / c_[n];
+            zm[n] = zd[n] / c_[n];
+        }
+    }
+
+    std::vector<Real> mu_, w_, c_;
+    Real tau_ = 0;
+    PhaseAtOrdinates<Real> phase_;
+    std::vector<SlabBeamMode<Real>> modes_;
+};
+
+}  // namespace detail
+}  // namespace stratum

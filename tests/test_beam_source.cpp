@@ -1,0 +1,182 @@
+// The beam source of a bare slab (detail/beam_source.hpp): its response to a beam at any cosine and its radiance
+// at any exit cosine, checked against what was not derived from it: the slab's own R and T at the ordinates (the
+// boundary solve of slab.hpp, another algorithm), energy conservation at a cosine between the ordinates, the
+// continuity through a resonance 1/x = lambda_j, and single scattering in a thin slab (a closed form).
+#include <doctest/doctest.h>
+
+#include <stratum/detail/beam_source.hpp>
+#include <stratum/henyey_greenstein.hpp>
+#include <stratum/quadrature.hpp>
+#include <stratum/slab.hpp>
+
+#include <cmath>
+#include <vector>
+
+namespace {
+
+using stratum::Quadrature;
+using stratum::Slab;
+using stratum::detail::BeamResponse;
+using stratum::detail::SlabBeam;
+using stratum::detail::SlabBeamMode;
+
+const double pi = 3.14159265358979323846;
+
+struct Setup {
+    Quadrature<double> q;
+    int modes;
+    std::vector<double> chi;
+    std::vector<stratum::SlabModeOperators<double>> ops;
+    SlabBeam<double> beam;
+};
+
+// A slab of albedo `albedo`, Henyey-Greenstein g (its first 2M moments, not delta-M scaled), thickness tau, on M
+// Gauss ordinates; every mode solved once, its operators kept for comparison.
+Setup make(int m, double albedo, double g, double tau) {
+    Setup s;
+    s.q = stratum::gauss_legendre_half<double>(m);
+    s.modes = 2 * m;
+    s.chi = stratum::HenyeyGreenstein<double>(g).legendre_moments(2 * m);
+    s.chi.resize(static_cast<std::size_t>(2 * m));
+    const stratum::PhaseFourierMatrices<double> p = stratum::phase_fourier_matrices(s.chi, s.q.nodes, s.modes);
+    const Slab<double> slab(albedo, g, tau);
+    s.beam = SlabBeam<double>(s.q, tau, stratum::detail::PhaseAtOrdinates<double>(s.chi, s.q.nodes, s.q.weights, s.modes));
+    for (int k = 0; k < s.modes; ++k) {
+        stratum::detail::SlabModeSolution<double> sol =
+            stratum::detail::slab_mode_solution(slab, s.q, p.same_k(k), p.opposite_k(k), k, false);
+        s.ops.push_back(stratum::detail::slab_mode_operators(sol, s.q, tau));
+        SlabBeamMode<double> md;
+        md.scatters = sol.scatters;
+        md.omega_k = albedo * (k == 0 ? 0.5 : 0.25);
+        md.lambda = sol.eigen.lambda;
+        md.n = sol.eigen.n;
+        md.y = sol.eigen.y;
+        md.r = sol.r_scaled;
+        md.t = sol.t_scaled;
+        s.beam.add_mode(std::move(md));
+    }
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("beam source: at an ordinate, the response is the slab's own column of R and T (another algorithm)") {
+    for (const double tau : {0.05, 1.3, 20.0}) {
+        const Setup s = make(8, 0.9, 0.7, tau);
+        const std::size_t m = s.q.size();
+        BeamResponse<double> at_x, at_y;
+        std::vector<double> scratch;
+        double worst = 0, worst_exit = 0, scale = 0;
+        for (std::size_t j = 0; j < m; ++j) {
+            const double x = s.q.nodes[j];
+            s.beam.respond(x, s.modes, at_x, scratch);
+            for (int k = 0; k < s.modes; ++k) {
+                // a beam of unit irradiance at ordinate j is radiance (2 - delta_k0) / (2 pi w_j mu_j) there
+                const double beam = (k == 0 ? 1.0 : 2.0) / (2 * pi * s.q.weights[j] * x);
+                for (std::size_t n = 0; n < m; ++n) {
+                    const auto& op = s.ops[static_cast<std::size_t>(k)];
+                    const double r = op.r(n, j) * beam;
+                    const double t = (op.t(n, j) - (n == j ? std::exp(-tau / x) : 0.0)) * beam;
+                    const std::size_t i = static_cast<std::size_t>(k) * m + n;
+                    worst = std::fmax(worst, std::fmax(std::fabs(at_x.up[i] - r), std::fabs(at_x.down[i] - t)));
+                    scale = std::fmax(scale, std::fmax(std::fabs(r), std::fabs(t)));
+                }
+            }
+            // the radiance at an exit cosine that is an ordinate, by the source function and reciprocity
+            for (std::size_t n = 0; n < m; ++n) {
+                s.beam.respond(s.q.nodes[n], s.modes, at_y, scratch);
+                for (int k = 0; k < s.modes; ++k) {
+                    double r = 0, t = 0;
+                    s.beam.exit(at_x, at_y, k, &r, &t);
+                    const std::size_t i = static_cast<std::size_t>(k) * m + n;
+                    worst_exit = std::fmax(worst_exit, std::fmax(std::fabs(r - at_x.up[i]), std::fabs(t - at_x.down[i])));
+                }
+            }
+        }
+        MESSAGE("tau " << tau << ": response vs R, T " << worst << ", exit at ordinates " << worst_exit << " (scale "
+                       << scale << ")");
+        CHECK(worst < 1e-12 * scale);
+        CHECK(worst_exit < 1e-12 * scale);
+    }
+}
+
+TEST_CASE("beam source: a conservative slab scatters exactly the energy the beam loses, at any cosine") {
+    // Omega = 1: diffuse flux up + down = 1 - e^{-tau/x} (mode 0), for x between the ordinates and at 1.
+    const Setup s = make(6, 1.0, 0.5, 0.8);
+    BeamResponse<double> r;
+    std::vector<double> scratch;
+    for (const double x : {0.013, 0.21, 0.5, 0.77, 0.999, 1.0}) {
+        s.beam.respond(x, 1, r, scratch);
+        double flux = 0;
+        for (std::size_t n = 0; n < s.q.size(); ++n) flux += 2 * pi * s.q.weights[n] * s.q.nodes[n] * (r.up[n] + r.down[n]);
+        CHECK(flux == doctest::Approx(-std::expm1(-0.8 / x)).epsilon(1e-13));
+    }
+}
+
+TEST_CASE("beam source: continuous through a resonance 1/x = lambda_j (the secular limit)") {
+    // x exactly 1 / lambda_j for an eigenvalue of a strongly scattering mode (k = 0) and of a weak one (k = 9, where
+    // lambda ~ 1/mu_n): the value there against the Richardson extrapolation of symmetric neighbours at relative
+    // distances h and 2h, (4 A(h) - A(2h)) / 3 = f + O(h^4) (h = 1e-3: ~1e-12 for these smooth responses).
+    const int modes = 10;
+    const Setup s = make(6, 0.95, 0.3, 2.0);
+    const stratum::PhaseFourierMatrices<double> p = stratum::phase_fourier_matrices(s.chi, s.q.nodes, modes);
+    for (const int k : {0, 9}) {
+        const auto sol =
+            stratum::detail::slab_mode_solution(Slab<double>(0.95, 0.3, 2.0), s.q, p.same_k(k), p.opposite_k(k), k, false);
+        double lambda = 0;
+        for (const double l : sol.eigen.lambda)
+            if (l > 1.5 && l < 3) lambda = l;
+        REQUIRE(lambda > 0);
+        const double x = 1 / lambda;
+        BeamResponse<double> at, at_y, near;
+        std::vector<double> scratch;
+        s.beam.respond(x, modes, at, scratch);
+        CHECK(at.points == 2);
+        s.beam.respond(0.4, modes, at_y, scratch);
+        auto value = [&](const BeamResponse<double>& b, std::size_t i) {  // i < M: up, then down, then the exit
+            const std::size_t m = s.q.size(), off = static_cast<std::size_t>(k) * m;
+            if (i < m) return b.up[off + i];
+            if (i < 2 * m) return b.down[off + i - m];
+            double r = 0, t = 0;
+            s.beam.exit(b, at_y, k, &r, &t);
+            return i == 2 * m ? r : t;
+        };
+        const double h = 1e-3;
+        for (std::size_t i = 0; i < 2 * s.q.size() + 2; ++i) {
+            double a[2];
+            for (int j = 0; j < 2; ++j) {
+                const double d = h * (j + 1);
+                s.beam.respond(x * (1 - d), modes, near, scratch);
+                const double lo = value(near, i);
+                s.beam.respond(x * (1 + d), modes, near, scratch);
+                a[j] = (lo + value(near, i)) / 2;
+            }
+            const double extrapolated = (4 * a[0] - a[1]) / 3;
+            CHECK(value(at, i) == doctest::Approx(extrapolated).epsilon(1e-9));
+        }
+    }
+}
+
+TEST_CASE("beam source: a thin slab's radiance at any exit cosine is single scattering (closed form)") {
+    // tau = 1e-5: to first order in tau, mode k of the radiance leaving at y per unit irradiance is
+    // Omega p_k(-+x, y) tau / (4 pi x y), up at the top and down at the bottom (Omega_k beta = Omega / (4 pi x) for
+    // every k; detail/beam_source.hpp); the next order is O(tau / x), O(tau / y).
+    const double tau = 1e-5, omega = 0.8;
+    const Setup s = make(8, omega, 0.6, tau);
+    BeamResponse<double> at_x, at_y;
+    std::vector<double> scratch;
+    for (const double x : {0.3, 0.77, 1.0})
+        for (const double y : {0.15, 0.5, 0.91}) {
+            s.beam.respond(x, s.modes, at_x, scratch);
+            s.beam.respond(y, s.modes, at_y, scratch);
+            for (int k = 0; k < 4; ++k) {
+                double r = 0, t = 0;
+                s.beam.exit(at_x, at_y, k, &r, &t);
+                const double f = omega * tau / (4 * pi * x * y);
+                const double r_single = f * stratum::phase_fourier_coefficient(s.chi, -x, y, k);
+                const double t_single = f * stratum::phase_fourier_coefficient(s.chi, x, y, k);
+                CHECK(std::fabs(r - r_single) < 1e-4 * f);
+                CHECK(std::fabs(t - t_single) < 1e-4 * f);
+            }
+        }
+}
