@@ -222,7 +222,7 @@ TEST_CASE("TabulatedBSDF: white furnace and sample values") {
     // marginal, which differs from the integral of the interpolated a_0 within the table's error: 2e-6 measured
     // here); every sample's value and pdf are eval's and pdf's at its direction.
     std::mt19937_64 rng(9);
-    const TabulatedBSDF<double> table(skin(), 1e-2), glass(glass_slab(), 1e-2);
+    const TabulatedBSDF<double> table(skin(), 1e-2), glass(glass_slab(), 1e-3);
     for (const TabulatedBSDF<double>* t : {&table, &glass})
         for (double mu : {1.0, 0.6, 0.2, 0.03}) {
             const Vec3<double> wi = direction(mu, 2.0);
@@ -248,13 +248,16 @@ TEST_CASE("TabulatedBSDF: white furnace and sample values") {
 
 TEST_CASE("TabulatedBSDF: smooth faces keep the mirror reflection and the direct beam as deltas") {
     // The albedo is the Fresnel reflection of the top, the layer's direct and forward-peak beams, and the
-    // integrals (64 x 64 Gauss rule per hemisphere) of its subsurface_brdf and btdf. Between smooth faces the
-    // layer's angular functions (exit by interpolation between ordinates) and its fluxes (reflectance(),
-    // transmittance(): exact exit totals) differ by up to 2e-4 at 16 ordinates split at the critical cosine (2%
-    // with one half-range rule; the README's known limitation of smooth faces); the table follows the functions
-    // it tabulates.
+    // integrals (64 x 64 Gauss rule per hemisphere) of its subsurface_brdf and btdf. Between smooth faces the layer's
+    // angular functions (intensities at true angles, the beam a source: docs/physics.md section 6) integrate to its
+    // fluxes (reflectance(), transmittance(): sums over the ordinates), measured within 1.3e-6 (with the beam spread
+    // over the ordinates and the exit by interpolation, as before, 2e-4). The table follows the functions it
+    // tabulates: at tolerance 1e-3 (17 nodes) its albedo is within 2.5e-5 / 5.4e-5 (R / T) of the integrals at
+    // mu = 1 and 0.5; at mu = 0.1, between the nodes 0.038 and 0.146, within 2.6e-4 / 1.8e-3: the layer changes
+    // fastest at grazing incidence (its transmittance at mu = 0.004 moved by 3.5% when the beam became exact), and
+    // the table's error there is small against the lobe's largest value, which its tolerance bounds.
     const LayeredSurface<double> layer = glass_slab();
-    const TabulatedBSDF<double> table(layer, 1e-2);
+    const TabulatedBSDF<double> table(layer, 1e-3);
     const Quadrature<double> g = gauss_legendre_half<double>(64);
     for (double mu : {1.0, 0.5, 0.1}) {
         const Vec3<double> wi = direction(mu, 0.0);
@@ -272,8 +275,10 @@ TEST_CASE("TabulatedBSDF: smooth faces keep the mirror reflection and the direct
         MESSAGE("glass slab mu " << mu << ": table R " << a.reflectance << " T " << a.transmittance
                                  << "; integrals " << r << ", " << t << "; layer fluxes " << layer.reflectance(mu).total()
                                  << ", " << layer.transmittance(mu));
-        CHECK(std::fabs(a.reflectance - r) <= 1e-4 * r);  // 1e-5 measured
-        CHECK(std::fabs(a.transmittance - t) <= 1e-4 * t);  // 5e-5 measured (mu 0.1)
+        CHECK(std::fabs(r - layer.reflectance(mu).total()) <= 2e-6);
+        CHECK(std::fabs(t - layer.transmittance(mu)) <= 2e-6);
+        CHECK(std::fabs(a.reflectance - r) <= (mu < 0.2 ? 4e-4 : 4e-5) * r);
+        CHECK(std::fabs(a.transmittance - t) <= (mu < 0.2 ? 2.7e-3 : 8e-5) * t);
     }
     // At normal incidence the transmitted delta leaves straight down with the layer's direct transmittance.
     const Vec3<double> wi{0, 0, 1};

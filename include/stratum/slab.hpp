@@ -154,6 +154,7 @@ template <class Real>
 struct SlabEigensystem {
     std::vector<Real> lambda;
     Matrix<Real> n, y;
+    bool regularized = false;  // the phase function was aliased on the ordinates and regularized (see regularize)
 };
 
 /// Raises the eigenvalues of the symmetric Z = D^{-1/2} S D^{-1/2} = I - Omega_k W^{1/2} P W^{1/2} (P the
@@ -339,6 +340,7 @@ SlabEigensystem<Real> slab_eigensystem(Real one_minus_albedo, const std::vector<
     }
 
     SlabEigensystem<Real> out;
+    out.regularized = deflate;  // (S- or S+ regularized)
     out.lambda.resize(m_size);
     for (std::size_t j = 0; j < m_size; ++j) out.lambda[j] = std::sqrt(std::fmax(eig.values[j], Real(0)));
     if (conservative && !deflate) {

@@ -41,8 +41,11 @@
 //
 // Energy: where the ordinates' rule is not a plain Gauss rule (split at critical cosines) the truncated phase
 // function does not integrate to 1 over it; the ordinates' phase matrices are corrected for that (layer.hpp,
-// make_discretely_conservative), and so is the beam's mode 0 here, by the factor that makes
-// sum_m w_m (p_0(x, mu_m) + p_0(-x, mu_m)) = 2: every bit of energy the beam loses is scattered.
+// make_discretely_conservative), and so is the beam's mode 0 here: p_0(x, +-mu_m) is multiplied by
+// (alpha +- beta mu_m) so that sum_m w_m (p_0(x, mu_m) + p_0(-x, mu_m)) = 2 (every bit of energy the beam loses is
+// scattered) and the scattered light's first moment along the normal is the exact 2 chi_1 x. The second condition
+// matters for a forward peak at normal incidence: Fresnel slab, g = 0.9, M = 32, against adding-doubling, worst
+// error 3.4e-4 with the energy condition alone, 3.8e-5 with both (measured).
 #pragma once
 
 #include <cmath>
@@ -68,7 +71,7 @@ class PhaseAtOrdinates {
 public:
     PhaseAtOrdinates() = default;
     PhaseAtOrdinates(std::vector<Real> chi, const std::vector<Real>& mu, const std::vector<Real>& w, int modes)
-        : chi_(std::move(chi)), w_(w), size_(mu.size()), modes_(modes), degree_(static_cast<int>(chi_.size()) - 1) {
+        : chi_(std::move(chi)), w_(w), mu_(mu), size_(mu.size()), modes_(modes), degree_(static_cast<int>(chi_.size()) - 1) {
         const int top = std::min(modes_ - 1, degree_);
         table_.resize(static_cast<std::size_t>(top + 1));
         coef_.resize(static_cast<std::size_t>(top + 1));
@@ -130,11 +133,34 @@ public:
             }
         }
         if (modes < 1) return;
+        // A truncated phase function may be negative in places (too few moments for the peak); its scattering of the
+        // beam into the ordinates is clamped at 0, so that a thin slab cannot send out negative flux (which the
+        // layer's fluxes would clamp, creating energy: g = -0.88, M = 3, measured), and renormalized below.
+        bool clamped = false;
+        for (std::size_t m = 0; m < m_size; ++m) {
+            if (same[m] < 0) same[m] = 0, clamped = true;
+            if (opposite[m] < 0) opposite[m] = 0, clamped = true;
+        }
         Real sum = 0;
         for (std::size_t m = 0; m < m_size; ++m) sum += w_[m] * (same[m] + opposite[m]);
         const Real tolerance = Real(64) * Real(m_size) * std::numeric_limits<Real>::epsilon();
-        if (sum > 0 && std::fabs(sum / 2 - 1) > tolerance)
-            for (std::size_t m = 0; m < m_size; ++m) same[m] *= 2 / sum, opposite[m] *= 2 / sum;
+        if (!(sum > 0) || (!clamped && !(std::fabs(sum / 2 - 1) > tolerance))) return;  // the rule integrates it exactly
+        // p'(x, +-mu) = p(x, +-mu) (alpha +- beta mu) with sum_m w_m (p'+ + p'-) = 2 (energy) and
+        // sum_m w_m mu_m (p'+ - p'-) = 2 chi_1 x (the scattered light's mean cosine along the normal: how much goes
+        // forward): a 2 x 2 system; energy alone (beta = 0) where that would make a value negative.
+        Real a11 = 0, a12 = 0, a22 = 0;
+        for (std::size_t m = 0; m < m_size; ++m) {
+            a11 += w_[m] * (same[m] + opposite[m]);
+            a12 += w_[m] * mu_[m] * (same[m] - opposite[m]);
+            a22 += w_[m] * mu_[m] * mu_[m] * (same[m] + opposite[m]);
+        }
+        const Real b2 = chi_.size() > 1 ? 2 * chi_[1] * x : Real(0), det = a11 * a22 - a12 * a12;
+        Real alpha = 2 / sum, beta = 0;
+        if (det > 0) {
+            const Real a = (2 * a22 - a12 * b2) / det, b = (a11 * b2 - 2 * a12) / det;
+            if (a - std::fabs(b) >= 0) alpha = a, beta = b;  // (mu <= 1: both factors >= 0)
+        }
+        for (std::size_t m = 0; m < m_size; ++m) same[m] *= alpha + beta * mu_[m], opposite[m] *= alpha - beta * mu_[m];
     }
 
     /// p_k(x, y) for two arbitrary cosines in [-1, 1] (not rescaled: single scattering between two true directions).
@@ -145,7 +171,7 @@ private:
         const std::size_t n = static_cast<std::size_t>(k) + j;
         return (k == 0 ? Real(1) : Real(2)) * static_cast<Real>(2 * n + 1) * chi_[n];
     }
-    std::vector<Real> chi_, w_;
+    std::vector<Real> chi_, w_, mu_;
     std::size_t size_ = 0;
     int modes_ = 0, degree_ = 0;
     std::vector<std::vector<Real>> table_;                    // per k: weight * Lambda_{k+j}^k(mu_m) at [j M + m]
@@ -193,6 +219,7 @@ public:
     }
     void add_mode(SlabBeamMode<Real> m) { modes_.push_back(std::move(m)); }
     int modes() const noexcept { return static_cast<int>(modes_.size()); }
+    const SlabBeamMode<Real>& mode(int k) const noexcept { return modes_[static_cast<std::size_t>(k)]; }
     Real optical_thickness() const noexcept { return tau_; }
 
     /// The response to a beam of unit horizontal irradiance entering the top at cosine x in (0, 1], modes < `modes`.
@@ -331,11 +358,19 @@ private:
             zd[i] = m;
             inc[i] = p * e;
         }
+        // T's diagonal holds the unscattered e^{-tau/mu_n}: its terms are taken together with Z's own, in closed
+        // form, so that a thin slab's O(tau) response is not the difference of O(1) terms:
+        //     up_n   = Z+_n (1 - e^{-tau/x - tau/mu_n}) - (R Z-)_n - (T' Z+)_n e,
+        //     down_n = Z-_n (e^{-tau/x} - e^{-tau/mu_n}) - (T' Z-)_n - (R Z+)_n e,   T' = T - diag(e^{-tau/mu}).
         for (std::size_t n = 0; n < m_size; ++n) {
-            Real u = zs[n], d = zd[n] * e;
+            const Real b = 1 / mu_[n], t_nn = md.t(n, n);
+            const Real unscattered = std::isinf(tau_) ? Real(0) : std::exp(-tau_ * b);
+            Real u = std::isinf(tau_) ? zs[n] : -std::expm1(-tau_ * (1 / x + b)) * zs[n];
+            Real d = zd[n] * exponential_difference(1 / x, b, tau_) * (b - 1 / x);
             for (std::size_t i = 0; i < m_size; ++i) {
-                u -= md.r(n, i) * zd[i] + md.t(n, i) * inc[i];
-                d -= md.t(n, i) * zd[i] + md.r(n, i) * inc[i];
+                const Real t = i == n ? t_nn - unscattered : md.t(n, i);
+                u -= md.r(n, i) * zd[i] + t * inc[i];
+                d -= t * zd[i] + md.r(n, i) * inc[i];
             }
             up[n] += weight * u / c_[n];
             down[n] += weight * d / c_[n];
