@@ -93,6 +93,14 @@ struct LayerOptions {
     /// detail::layer_quadrature for how the points are shared), so that light that can leave and light that is
     /// trapped are integrated apart. Off, or with a rough face: one half-range rule.
     bool critical_split = true;
+    /// Between specular faces (where the beam is a source: docs/physics.md section 6), brdf and btdf add the exact
+    /// single scattering of the untruncated phase function in place of the truncated one (Nakajima and Tanaka 1988's
+    /// TMS correction, as DISORT's intensities): near the beam's directions, where delta-M's truncated phase function
+    /// cannot follow a forward peak, the radiance is then right at 16 ordinates (tests/test_layer_intensity.cpp).
+    /// The forward peak's single scattering, which reflectance() and transmittance() count in the delta-M beam
+    /// (forward_peak_*), is then in brdf and btdf as well: their integrals exceed the fluxes by it. Off: brdf and
+    /// btdf integrate to the fluxes (and fourier_coefficients, which never include it, give them).
+    bool single_scattering_correction = false;
 };
 
 /// What a scene needs (see LayerOutput); the solver computes nothing else.
@@ -380,6 +388,7 @@ struct SlabModes {
     Slab<Real> slab;  // possibly delta-M scaled
     PhaseFourierMatrices<Real> phase;
     std::vector<Real> moments;  // the Legendre moments behind `phase` (scaled and truncated as it is)
+    Real truncation = 0;        // delta-M's f (0 without)
 };
 
 /// Scattering conserves energy on the ordinates: sum_m w_m (P+ + P-)_nm = 2 for mode 0 (Stam's normalization). The
@@ -429,7 +438,7 @@ SlabModes<Real> prepare_slab_from_moments(const Slab<Real>& s, const Quadrature<
     for (std::size_t l = 1; l < count; ++l) chi[l] = (chi[l] - f) / (Real(1) - f);
     const Real one_minus_f_omega = (Real(1) - f) + f * s.one_minus_albedo();
     SlabModes<Real> out{Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(), one_minus_f_omega * tau),
-                        phase_fourier_matrices(chi, q.nodes, modes), chi};
+                        phase_fourier_matrices(chi, q.nodes, modes), chi, f};
     make_discretely_conservative(out.phase, q);
     return out;
 }
@@ -447,7 +456,7 @@ SlabModes<Real> prepare_slab(const Slab<Real>& s, const Quadrature<Real>& q, int
         const Real one_minus_f_omega = (Real(1) - dm.f) + dm.f * s.one_minus_albedo();
         const Slab<Real> scaled = Slab<Real>::from_one_minus_albedo(s.one_minus_albedo() / one_minus_f_omega, s.g(),
                                                                     one_minus_f_omega * tau);
-        SlabModes<Real> out{scaled, phase_fourier_matrices(dm.moments, q.nodes, modes), dm.moments};
+        SlabModes<Real> out{scaled, phase_fourier_matrices(dm.moments, q.nodes, modes), dm.moments, dm.f};
         make_discretely_conservative(out.phase, q);
         return out;
     }
@@ -693,6 +702,7 @@ struct BeamSolution {
     std::vector<LU<Real>> lu;  // per mode; no factors where nothing makes a diffuse field
     std::vector<Real> r21, r23;
     Real floor = -1;           // a Lambertian floor's albedo (< 0: the bottom is specular)
+    bool single_scattering = false;  // LayerOptions::single_scattering_correction
 };
 
 /// The diffuse field of one incidence mu_i between specular faces: per slab the beam's flux entering it going down
@@ -1268,6 +1278,41 @@ private:
         }
     }
 
+    // LayerOptions::single_scattering_correction: each slab's exact-minus-truncated single scattering of the beam's
+    // passes (SlabBeam::single_scattering_correction; a beam going up sends out the mirror image), taken to the face
+    // at y through the other slabs and the faces' bounces as in beam_exit.
+    Real single_scattering_correction(const detail::BeamField<Real>& f, Real mu_o, Real cos_dphi, bool transmitted,
+                                      Workspace& ws) const {
+        const std::size_t count = beam_->slabs.size();
+        const Face face = transmitted ? bottom_face() : top_face();
+        const Real y = face.internal_cosine(mu_o), x = top_face().internal_cosine(f.mu_i);
+        if (!(y > 0) || !(x > 0) || !f.lit()) return Real(0);
+        const Real leave = face.boundary().smooth_interface().radiance_transmittance(face.from_inside(y));
+        std::vector<Real>& attenuation = ws.in;
+        std::vector<Real>& emitted_down = ws.shape;
+        attenuation.resize(count);
+        emitted_down.resize(count);
+        Real eu = 0, ed = 0, e = 1;
+        for (std::size_t j = 0; j < count; ++j) {
+            const Real tau = beam_->slabs[j].optical_thickness();
+            Real r = 0, t = 0;
+            beam_->slabs[j].single_scattering_correction(x, y, cos_dphi, &r, &t);
+            eu += e * (f.flux_down[j] * r + f.flux_up[j] * t);
+            emitted_down[j] = f.flux_down[j] * t + f.flux_up[j] * r;
+            attenuation[j] = std::isinf(tau) ? Real(0) : std::exp(-tau / y);
+            e *= attenuation[j];
+        }
+        Real below = 1;
+        for (std::size_t j = count; j-- > 0;) {
+            ed += below * emitted_down[j];
+            below *= attenuation[j];
+        }
+        if (beam_->floor >= 0) return transmitted ? Real(0) : leave * eu;
+        const Real r21_y = top_.smooth_interface().reflectance(-y), r23_y = bottom_.smooth_interface().reflectance(y);
+        const Real loss = Real(1) - r21_y * r23_y * e * e;
+        return leave * (transmitted ? ed + e * r21_y * eu : eu + e * r23_y * ed) / loss;
+    }
+
     // brdf/btdf between specular faces: the modes of beam_exit summed at the azimuth of wo from -wi.
     Real beam_radiance(Vec3<Real> wi, Vec3<Real> wo, bool transmitted, Workspace& ws) const {
         const Real mu_i = std::fmin(wi.z, Real(1)), mu_o = std::fmin(std::fabs(wo.z), Real(1));
@@ -1283,6 +1328,7 @@ private:
             c_prev = c_k;
             c_k = c_next;
         }
+        if (beam_->single_scattering) sum += single_scattering_correction(f, mu_o, cos_dphi, transmitted, ws);
         return non_negative(sum);
     }
 
@@ -1591,6 +1637,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
             const detail::SlabModes<Real>& p = stack.slabs[i];
             s.beam_->slabs.emplace_back(s.q_, p.slab.optical_thickness(),
                                         detail::PhaseAtOrdinates<Real>(p.moments, s.q_.nodes, s.q_.weights, modes));
+            s.beam_->slabs.back().set_exact_phase(p.slab.albedo(), p.truncation, slabs[i].henyey_greenstein(),
+                                                  slabs[i].g(), slabs[i].phase_moments());
             scaled_tau += p.slab.optical_thickness();
             true_tau += slabs[i].optical_thickness();
         }
@@ -1599,6 +1647,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
             s.beam_->r23.push_back(bottom.lambertian() ? Real(0) : bottom.smooth_interface().reflectance(mu));
         }
         if (bottom.lambertian()) s.beam_->floor = bottom.floor_albedo();
+        s.beam_->single_scattering = options.single_scattering_correction;
         s.direct_tau_ = scaled_tau;
         s.beam_tau_ = std::isinf(scaled_tau) ? scaled_tau : true_tau;
     }
@@ -2022,6 +2071,8 @@ inline void require_same_options(const std::string& name, const LayerOptions& op
                static_cast<long long>(reference.specular_transmission));
     if (options.critical_split != reference.critical_split)
         differ("critical_split", options.critical_split, reference.critical_split);
+    if (options.single_scattering_correction != reference.single_scattering_correction)
+        differ("single_scattering_correction", options.single_scattering_correction, reference.single_scattering_correction);
 }
 
 

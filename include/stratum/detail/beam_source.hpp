@@ -163,6 +163,9 @@ public:
         for (std::size_t m = 0; m < m_size; ++m) same[m] *= alpha + beta * mu_[m], opposite[m] *= alpha - beta * mu_[m];
     }
 
+    /// The moments behind it.
+    const std::vector<Real>& moments() const noexcept { return chi_; }
+
     /// p_k(x, y) for two arbitrary cosines in [-1, 1] (not rescaled: single scattering between two true directions).
     Real between(Real x, Real y, int k) const noexcept { return phase_fourier_coefficient(chi_, x, y, k); }
 
@@ -220,6 +223,31 @@ public:
     void add_mode(SlabBeamMode<Real> m) { modes_.push_back(std::move(m)); }
     int modes() const noexcept { return static_cast<int>(modes_.size()); }
     const SlabBeamMode<Real>& mode(int k) const noexcept { return modes_[static_cast<std::size_t>(k)]; }
+
+    /// For the single-scattering correction: the slab's (scaled) albedo, delta-M's truncation f, and the exact phase
+    /// function: Henyey-Greenstein of asymmetry hg_g when henyey_greenstein, else the Legendre moments given.
+    void set_exact_phase(Real scaled_albedo, Real truncation, bool henyey_greenstein, Real hg_g, std::vector<Real> moments) {
+        albedo_ = scaled_albedo;
+        truncation_ = truncation;
+        hg_ = henyey_greenstein;
+        hg_g_ = hg_g;
+        exact_moments_ = std::move(moments);
+    }
+
+    /// The exact single scattering of a beam at x (per unit flux) minus the truncated one that the modes hold,
+    /// leaving at y up through the top (*r) and down through the bottom (*t), at the azimuth whose cosine from the
+    /// beam's direction of travel is cos_dphi (Nakajima and Tanaka 1988's TMS): with P the phase function normalized
+    /// to 4 pi, P' the truncated (scaled) one the solve uses, Omega' its albedo and f delta-M's truncation,
+    ///     Omega' / (4 pi x) [P(cos Theta) / (1 - f) - P'(cos Theta)] times the path factor of the top of this file
+    /// (Omega' / (1 - f) = Omega / (1 - f Omega): with the scaled thickness, the exact single scattering).
+    void single_scattering_correction(Real x, Real y, Real cos_dphi, Real* r, Real* t) const noexcept {
+        const Real sines = std::sqrt((1 - x) * (1 + x) * (1 - y) * (1 + y)) * cos_dphi;
+        const Real a = 1 / x, b = 1 / y, scale = albedo_ / (4 * pi_v<Real> * x);
+        const Real up_path = std::isinf(tau_) ? Real(1) / ((a + b) * y) : -std::expm1(-(a + b) * tau_) / ((a + b) * y);
+        const Real down_path = exponential_difference(a, b, tau_) / y;
+        *r = scale * difference(sines - x * y) * up_path;  // beam down, exit up: cos Theta = -x y + sin sin cos
+        *t = scale * difference(sines + x * y) * down_path;
+    }
     Real optical_thickness() const noexcept { return tau_; }
 
     /// The response to a beam of unit horizontal irradiance entering the top at cosine x in (0, 1], modes < `modes`.
@@ -307,6 +335,30 @@ public:
     }
 
 private:
+    // P(c) / (1 - f) - P'(c): the exact phase function over the truncated one (both normalized to 4 pi).
+    Real difference(Real c) const noexcept {
+        c = std::fmin(Real(1), std::fmax(Real(-1), c));
+        auto series = [c](const std::vector<Real>& chi) {  // sum_l (2l + 1) chi_l P_l(c)
+            Real p0 = 1, p1 = c, sum = chi.empty() ? Real(0) : chi[0];
+            for (std::size_t l = 1; l < chi.size(); ++l) {
+                sum += static_cast<Real>(2 * l + 1) * chi[l] * p1;
+                const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
+                p0 = p1;
+                p1 = p2;
+            }
+            return sum;
+        };
+        Real exact;
+        if (hg_) {
+            const Real omg = 1 - hg_g_, opg = 1 + hg_g_;  // (1 - g^2) / (1 + g^2 - 2 g c)^{3/2}, the denominator as sums
+            const Real denom = hg_g_ >= 0 ? omg * omg + 2 * hg_g_ * (1 - c) : opg * opg - 2 * hg_g_ * (1 + c);
+            exact = omg * opg / (denom * std::sqrt(denom));
+        } else {
+            exact = series(exact_moments_);
+        }
+        return exact / (1 - truncation_) - series(phase_.moments());
+    }
+
     // (e^{-a tau} - e^{-b tau}) / (b - a), a, b > 0, without cancellation or overflow (tau e^{-a tau} at a = b).
     static Real exponential_difference(Real a, Real b, Real tau) noexcept {
         if (std::isinf(tau)) return Real(0);
@@ -382,6 +434,9 @@ private:
     std::vector<Real> mu_, w_, c_;
     Real tau_ = 0;
     PhaseAtOrdinates<Real> phase_;
+    Real albedo_ = 0, truncation_ = 0, hg_g_ = 0;  // for the single-scattering correction (set_exact_phase)
+    bool hg_ = false;
+    std::vector<Real> exact_moments_;
     std::vector<SlabBeamMode<Real>> modes_;
 };
 

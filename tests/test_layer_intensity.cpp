@@ -1,0 +1,241 @@
+// Intensities at true angles between specular (index-matched or smooth) faces, where the beam is a source exact at
+// its angle (docs/physics.md section 6): against converged DISORT (tests/data/disort_intensity_reference.txt, an
+// outside code run outside this repository), its fluxes, reciprocity, and the hard cases of the incidence (on an
+// ordinate, at the pole, at grazing and near the critical angle).
+#include <doctest/doctest.h>
+
+#include <stratum/layer.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "test_util.hpp"
+
+using stratum::Boundary;
+using stratum::LayerOptions;
+using stratum::LayeredSurface;
+using stratum::Slab;
+using stratum::SmoothDielectric;
+using stratum::Vec3;
+
+namespace {
+
+const double pi = 3.14159265358979323846;
+
+// The unit vector of cosine mu (its sign: the hemisphere) at azimuth phi.
+Vec3<double> direction(double mu, double phi) {
+    const double s = std::sqrt((1 - mu) * (1 + mu));
+    return {s * std::cos(phi), s * std::sin(phi), mu};
+}
+
+struct Problem {
+    double g, albedo, tau, mu0;
+};
+const std::map<std::string, Problem>& problems() {
+    static const std::map<std::string, Problem> p = {{"P1", {0.75, 0.9, 1.0, 0.5}},
+                                                     {"P2", {0.75, 0.9, 1.0, 1.0}},
+                                                     {"P3", {0.0, 1.0, 2.0, 0.7}},
+                                                     {"P4", {0.9, 0.99, 4.0, 0.3}},
+                                                     {"P5", {0.5, 0.8, 0.1, 0.6}}};
+    return p;
+}
+
+struct Intensity {
+    std::string problem;
+    double umu, phi_deg, reference;
+};
+struct Flux {
+    double up, down, direct;
+};
+
+// The lit values (upwelling at the top, downwelling at the bottom) and the fluxes of the reference file.
+void read_reference(std::vector<Intensity>& out, std::map<std::string, Flux>& fluxes) {
+    std::ifstream in(STRATUM_TEST_DATA_DIR "/disort_intensity_reference.txt");
+    REQUIRE(in.good());
+    for (std::string line; std::getline(in, line);) {
+        if (line.empty() || line[0] == '#') continue;
+        std::istringstream row(line);
+        std::string first;
+        row >> first;
+        if (first == "flux") {
+            std::string name;
+            Flux f{};
+            row >> name >> f.up >> f.down >> f.direct;
+            REQUIRE(!row.fail());
+            fluxes[name] = f;
+            continue;
+        }
+        std::string level;
+        Intensity x{first, 0, 0, 0};
+        double sixteen = 0;
+        row >> level >> x.umu >> x.phi_deg >> x.reference >> sixteen;
+        REQUIRE(!row.fail());
+        if ((level == "top") == (x.umu > 0)) out.push_back(x);
+    }
+    REQUIRE(out.size() == 5 * 14 * 4);
+    REQUIRE(fluxes.size() == 5);
+}
+
+LayeredSurface<double> solve(const Problem& p, int m, bool correction) {
+    LayerOptions o;
+    o.ordinates = m;
+    o.single_scattering_correction = correction;
+    return solve_layer(Slab<double>(p.albedo, p.g, p.tau), Boundary<double>::index_matched(), Boundary<double>::index_matched(), o);
+}
+
+// DISORT's conventions: the beam travels down at azimuth 0; (umu, phi) is a direction of travel, umu > 0 up.
+double intensity(const LayeredSurface<double>& layer, const Problem& p, double umu, double phi_deg) {
+    const Vec3<double> wi{-std::sqrt(1 - p.mu0 * p.mu0), 0, p.mu0};
+    const double s = std::sqrt(1 - umu * umu), phi = phi_deg * pi / 180;
+    const Vec3<double> wo{s * std::cos(phi), s * std::sin(phi), umu};
+    return umu > 0 ? layer.subsurface_brdf(wi, wo) : layer.btdf(wi, wo);
+}
+
+// Worst relative error over a problem's 56 lit intensities.
+double worst_error(const std::vector<Intensity>& ref, const std::string& name, const LayeredSurface<double>& layer) {
+    const Problem& p = problems().at(name);
+    double worst = 0;
+    for (const Intensity& x : ref)
+        if (x.problem == name)
+            worst = std::fmax(worst, std::fabs(intensity(layer, p, x.umu, x.phi_deg) - x.reference) / x.reference);
+    return worst;
+}
+
+}  // namespace
+
+TEST_CASE("intensities at true angles converge to DISORT's at the method's rate, monotonically") {
+    // Five problems (g 0 to 0.9, albedo 0.8 to 1, tau 0.1 to 4, mu0 0.3 to 1), 14 exit cosines from 0.1 to 1 (0.999
+    // and 1 included) at 4 azimuths, against DISORT at 256 streams (converged to ~1e-8; its 16-stream values, with
+    // TMS and IMS, are off by up to 5.3e-3). Measured worst relative error with the single-scattering correction
+    // (LayerOptions::single_scattering_correction), M = 8 / 16 / 24 / 32 / 48:
+    //   P1 1.1e-3 / 1.7e-6 / 6.5e-8 / 1.3e-8 / 2.7e-9     P2 4.1e-3 / 1.5e-5 / 6.0e-8 / 7.7e-9 / 7.0e-10
+    //   P3 2.9e-6 / 1.1e-7 / 1.0e-8 / 1.9e-9 / 2.9e-10    P4 1.7e-2 / 1.2e-3 / 8.8e-5 / 8.9e-6 / 1.5e-7
+    //   P5 6.8e-4 / 6.5e-6 / 6.2e-8 / 3.0e-8 / 7.4e-10
+    // (from M = 32 on, P1, P2, P3, P5 are at the reference's own accuracy). Before the beam was a source, P1 at
+    // M = 16 / 32 / 64 / 96 gave 9.1e-2 / 4.2e-2 / 2.1e-2 / 1.4e-2 (the issue that asked for this). Bounds: the
+    // measured x 1.5, and at least 3e-8 (the reference's accuracy).
+    std::vector<Intensity> ref;
+    std::map<std::string, Flux> fluxes;
+    read_reference(ref, fluxes);
+    const std::map<std::string, std::vector<double>> bound = {
+        {"P1", {1.7e-3, 2.5e-6, 1e-7, 3e-8, 3e-8}},  {"P2", {6.2e-3, 2.2e-5, 9e-8, 3e-8, 3e-8}},
+        {"P3", {4.4e-6, 1.7e-7, 3e-8, 3e-8, 3e-8}},  {"P4", {2.6e-2, 1.8e-3, 1.4e-4, 1.4e-5, 3e-7}},
+        {"P5", {1.1e-3, 1e-5, 1e-7, 4.5e-8, 3e-8}}};
+    const int ms[] = {8, 16, 24, 32, 48};
+    for (const auto& [name, p] : problems()) {
+        double previous = 1;
+        for (std::size_t i = 0; i < 5; ++i) {
+            const double e = worst_error(ref, name, solve(p, ms[i], true));
+            MESSAGE(name << ", M = " << ms[i] << ": worst relative error " << e);
+            CHECK(e < bound.at(name)[i]);
+            if (e > 3e-8) CHECK(e < previous);  // (monotone until the reference's accuracy)
+            previous = e;
+        }
+    }
+}
+
+TEST_CASE("the single-scattering correction is what puts the forward and backward peaks right at 16 ordinates") {
+    // Without it, the truncated phase function misses the peak of single scattering near the beam's directions:
+    // measured at M = 16, worst 3.3e-3 (P1, forward), 4.0e-3 (P2), 1.1e-1 (P4, backward glory of g = 0.9), against
+    // 1.7e-6, 1.5e-5, 1.2e-3 with it; where no peak is truncated (P3, g = 0) it changes nothing.
+    std::vector<Intensity> ref;
+    std::map<std::string, Flux> fluxes;
+    read_reference(ref, fluxes);
+    for (const char* name : {"P1", "P2", "P4"}) {
+        const Problem& p = problems().at(name);
+        const double without = worst_error(ref, name, solve(p, 16, false)), with = worst_error(ref, name, solve(p, 16, true));
+        CHECK(without > 2e-3);
+        CHECK(with < without / 3);
+    }
+    const Problem& p3 = problems().at("P3");
+    CHECK(worst_error(ref, "P3", solve(p3, 16, false)) == worst_error(ref, "P3", solve(p3, 16, true)));
+}
+
+TEST_CASE("fluxes against DISORT's, and the intensities integrate to them") {
+    // Flux up at the top, diffuse flux down at the bottom and the direct beam, converged DISORT; at M = 24 within
+    // 4e-7 (measured 2.7e-7 at most); the direct beam e^{-tau/mu0} to rounding. Without the correction, the intensities at true angles (64 x 64 Gauss per
+    // hemisphere) integrate to the solver's own fluxes within 1e-6 (measured 5.2e-7).
+    std::vector<Intensity> ref;
+    std::map<std::string, Flux> fluxes;
+    read_reference(ref, fluxes);
+    const stratum::Quadrature<double> g = stratum::gauss_legendre_half<double>(64);
+    for (const auto& [name, p] : problems()) {
+        const LayeredSurface<double> layer = solve(p, 24, false);
+        const Flux& f = fluxes.at(name);
+        const double direct = layer.direct_transmittance(p.mu0);
+        CHECK(std::fabs(direct - f.direct) < 1e-12 * f.direct);
+        // DISORT's diffuse flux excludes the delta-M beam's forward peak; stratum's transmittance() includes it
+        CHECK(std::fabs(layer.reflectance(p.mu0).total() - f.up) < 4e-7);
+        CHECK(std::fabs(layer.transmittance(p.mu0) - direct - f.down) < 4e-7);
+        const Vec3<double> wi{-std::sqrt(1 - p.mu0 * p.mu0), 0, p.mu0};
+        double r = layer.direct_reflectance(p.mu0) + layer.forward_peak_reflectance(p.mu0);
+        double t = direct + layer.forward_peak_transmittance(p.mu0);
+        for (std::size_t a = 0; a < g.size(); ++a)
+            for (std::size_t b = 0; b < g.size(); ++b) {
+                const double s = std::sqrt(1 - g.nodes[a] * g.nodes[a]), phi = pi * g.nodes[b];
+                const Vec3<double> up{s * std::cos(phi), s * std::sin(phi), g.nodes[a]};
+                const double w = 2 * pi * g.weights[a] * g.weights[b] * g.nodes[a];
+                r += w * layer.subsurface_brdf(wi, up);
+                t += w * layer.btdf(wi, {up.x, up.y, -up.z});
+            }
+        INFO(name << ": integrals " << r << ", " << t << "; fluxes " << layer.reflectance(p.mu0).total() << ", "
+                  << layer.transmittance(p.mu0));
+        CHECK(std::fabs(r - layer.reflectance(p.mu0).total()) < 1e-6);
+        CHECK(std::fabs(t - layer.transmittance(p.mu0)) < 1e-6);
+    }
+}
+
+TEST_CASE("smooth Fresnel faces: the BRDF at true angles is reciprocal") {
+    // Air | 1.4 | air: f(wi, wo) = f(wo, wi). The solution is not symmetric in its construction (the beam is a
+    // source, the exit a source-function integral), so this is a check: measured within 2e-12 relative at M = 16
+    // (the discrete equations are reciprocal: docs/physics.md section 6).
+    LayerOptions o;
+    o.ordinates = 16;
+    for (const bool correction : {false, true}) {
+        o.single_scattering_correction = correction;
+        const auto layer = solve_layer(Slab<double>(0.9, 0.7, 1.5), SmoothDielectric<double>(1.0, 1.4),
+                                       SmoothDielectric<double>(1.4, 1.0), o);
+        double worst = 0;
+        for (const double a : {0.05, 0.3, 0.7, 1.0})
+            for (const double b : {0.1, 0.5, 0.9, 0.999})
+                for (const double phi : {0.0, 1.0, 3.0}) {
+                    const Vec3<double> wi = direction(a, 0.0), wo = direction(b, phi);
+                    const double f = layer.subsurface_brdf(wi, wo), f_reversed = layer.subsurface_brdf(wo, wi);
+                    worst = std::fmax(worst, std::fabs(f - f_reversed) / f);
+                }
+        MESSAGE("correction " << correction << ": worst relative asymmetry " << worst);
+        CHECK(worst < 1e-10);
+    }
+}
+
+TEST_CASE("hard incidences: on an ordinate, at the pole, at grazing, at the critical angle: finite and continuous") {
+    LayerOptions o;
+    o.ordinates = 12;
+    const auto layer = solve_layer(Slab<double>(0.95, 0.8, 2.0), SmoothDielectric<double>(1.0, 1.33),
+                                   SmoothDielectric<double>(1.33, 1.0), o);
+    const Vec3<double> wo = direction(0.6, 2.0), wt = direction(-0.4, 0.5);
+    // Values at mu and at a neighbour at relative distance h differ by O(h) (by O(sqrt(h)) at the pole, where the
+    // modes k > 0 vanish as sin^k); near grazing the BRDF and BTDF are proportional to mu (T_12 is).
+    auto close = [&](double mu, double nearby, double ratio, double tolerance) {
+        const Vec3<double> a = direction(mu, 0.0), b = direction(nearby, 0.0);
+        const double fa = layer.subsurface_brdf(a, wo), fb = layer.subsurface_brdf(b, wo) * ratio;
+        const double ta = layer.btdf(a, wt), tb = layer.btdf(b, wt) * ratio;
+        INFO("mu " << mu << ": " << fa << " / " << fb << ", " << ta << " / " << tb);
+        CHECK(fa > 0);
+        CHECK(ta > 0);
+        CHECK(std::fabs(fa - fb) <= tolerance * fa);
+        CHECK(std::fabs(ta - tb) <= tolerance * ta);
+    };
+    // the refracted beam exactly on an ordinate (where the weakly scattering modes have lambda ~ 1/mu_m)
+    for (const double node : layer.quadrature().nodes) {
+        const double mu = std::sqrt(1 - 1.33 * 1.33 * (1 - node * node));  // Snell, outside
+        if (mu > 0 && mu <= 1) close(mu, mu * (1 - 1e-7), 1, 1e-5);
+    }
+    close(1.0, 1 - 1e-13, 1, 1e-5);  // the pole
+    close(1e-9, 2e-9, 0.5, 1e-5);    // grazing: the refracted beam at the critical cosine
+    CHECK(layer.subsurface_brdf(direction(1e-300, 0.0), wo) >= 0);
+}
