@@ -175,4 +175,54 @@ void BM_layer_fresnel_slab_fluxes(benchmark::State& state) {
 BENCHMARK(BM_layer_fresnel_slab_fluxes)->Args({8, 1})->Args({16, 1})->Args({24, 1})->Args({32, 1})->Args({16, 0})->Args({32, 0})
     ->Unit(benchmark::kMicrosecond);
 
+// Between smooth faces the beam is a source and the exit an integral of the source function (docs/physics.md
+// section 6): the subsurface BRDF at a true angle, the incidence new on every call (Arg 0) or precomputed (Arg 1),
+// M = 16; the same slab as above.
+void BM_layer_smooth_brdf_true_angle(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = 16;
+    stratum::LayerRequest<Real> request;
+    if (state.range(0) != 0) request.incidence = {Real(0.6)};
+    const auto layer = stratum::solve_layer(stratum::Slab<Real>(0.9, 0.8, 1.0), stratum::SmoothDielectric<Real>(1.0, 1.4),
+                                            stratum::SmoothDielectric<Real>(1.4, 1.0), options, request);
+    const stratum::Vec3<Real> wo{Real(0.3), Real(0.2), std::sqrt(Real(1) - Real(0.13))};
+    typename stratum::LayeredSurface<Real>::Workspace ws;
+    int i = 0;
+    for (auto _ : state) {
+        const Real mu = state.range(0) != 0 ? Real(0.6) : Real(0.6) + Real(1e-9) * static_cast<Real>(i++ % 1000);
+        const stratum::Vec3<Real> wi{-std::sqrt(Real(1) - mu * mu), 0, mu};
+        benchmark::DoNotOptimize(layer.subsurface_brdf(wi, wo, ws));
+    }
+}
+BENCHMARK(BM_layer_smooth_brdf_true_angle)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+// DISORT's test problem P1 of tests/data/disort_intensity_reference.txt (g 0.75, albedo 0.9, tau 1, mu0 0.5, black
+// faces): the solve and the 56 lit intensities at true angles, with the single-scattering correction; accuracy
+// against converged DISORT in docs/accuracy.md.
+void BM_layer_intensities_disort_p1(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    options.single_scattering_correction = true;
+    stratum::LayerRequest<Real> request;
+    request.incidence = {Real(0.5)};
+    request.outputs = stratum::LayerOutput::subsurface_reflection | stratum::LayerOutput::transmission;
+    const Real umu[] = {1, Real(0.999), Real(0.9), Real(0.7), Real(0.5), Real(0.3), Real(0.1)};
+    for (auto _ : state) {
+        const auto layer = stratum::solve_layer(stratum::Slab<Real>(Real(0.9), Real(0.75), 1),
+                                                stratum::Boundary<Real>::index_matched(),
+                                                stratum::Boundary<Real>::index_matched(), options, request);
+        typename stratum::LayeredSurface<Real>::Workspace ws;
+        const stratum::Vec3<Real> wi{-std::sqrt(Real(0.75)), 0, Real(0.5)};
+        Real sum = 0;
+        for (const Real u : umu)
+            for (const Real phi : {Real(0), Real(1.0471975511965976), Real(2.0943951023931953), Real(3.141592653589793)}) {
+                const Real s = std::sqrt(1 - u * u);
+                sum += layer.subsurface_brdf(wi, {s * std::cos(phi), s * std::sin(phi), u}, ws);
+                sum += layer.btdf(wi, {s * std::cos(phi), s * std::sin(phi), -u}, ws);
+            }
+        benchmark::DoNotOptimize(sum);
+    }
+}
+BENCHMARK(BM_layer_intensities_disort_p1)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
 }  // namespace

@@ -126,7 +126,9 @@ TEST_CASE("intensities at true angles converge to DISORT's at the method's rate,
         {"P3", {4.4e-6, 1.7e-7, 3e-8, 3e-8, 3e-8}},  {"P4", {2.6e-2, 1.8e-3, 1.4e-4, 1.4e-5, 3e-7}},
         {"P5", {1.1e-3, 1e-5, 1e-7, 4.5e-8, 3e-8}}};
     const int ms[] = {8, 16, 24, 32, 48};
-    for (const auto& [name, p] : problems()) {
+    for (const auto& entry : problems()) {
+        const std::string& name = entry.first;
+        const Problem& p = entry.second;
         double previous = 1;
         for (std::size_t i = 0; i < 5; ++i) {
             const double e = worst_error(ref, name, solve(p, ms[i], true));
@@ -163,7 +165,9 @@ TEST_CASE("fluxes against DISORT's, and the intensities integrate to them") {
     std::map<std::string, Flux> fluxes;
     read_reference(ref, fluxes);
     const stratum::Quadrature<double> g = stratum::gauss_legendre_half<double>(64);
-    for (const auto& [name, p] : problems()) {
+    for (const auto& entry : problems()) {
+        const std::string& name = entry.first;
+        const Problem& p = entry.second;
         const LayeredSurface<double> layer = solve(p, 24, false);
         const Flux& f = fluxes.at(name);
         const double direct = layer.direct_transmittance(p.mu0);

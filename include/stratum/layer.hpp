@@ -1674,22 +1674,51 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
 // negligible modes.
 template <class Real>
 void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack, int modes, Real tolerance) {
+    // Where the beam is a source, the fields and fluxes come from the slabs' own solutions (add_beam_mode): the
+    // adding of the stack and Q_b, Q_e serve only the ambient term and the whole layer's operators.
+    bool slabs_only = beam_ && !includes(outputs_, LayerOutput::ambient) && !includes(outputs_, LayerOutput::operators);
     Real size0 = 0;
     int negligible = 0;  // consecutive negligible modes
     for (int k = 0; k < modes; ++k) {
         std::vector<detail::SlabModeSolution<Real>> solved;
-        const detail::StackMode<Real> below = detail::stack_mode(stack, *bottom_ops_, q_, k, beam_ ? &solved : nullptr);
+        std::optional<detail::StackMode<Real>> below;
+        Real slab_size = 0;
+        if (slabs_only) {
+            for (const detail::SlabModes<Real>& p : stack.slabs) {
+                solved.push_back(detail::slab_mode_solution(p.slab, q_, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
+                const Real tau = p.slab.optical_thickness();
+                slab_size = std::fmax(slab_size, detail::diffuse_size(slab_component(detail::slab_mode_operators(solved.back(), q_, tau)),
+                                                                      q_.nodes, tau));
+            }
+        } else {
+            below = detail::stack_mode(stack, *bottom_ops_, q_, k, beam_ ? &solved : nullptr);
+            slab_size = below->slab_size;
+        }
         // An aliased phase function (regularized operators: slab.hpp) does not scatter the beam as it scatters the
-        // ordinates, and energy would not be conserved: the beam is spread over the ordinates instead (solve()).
-        for (const detail::SlabModeSolution<Real>& x : solved)
-            if (beam_ && x.eigen.regularized) beam_.reset();
+        // ordinates, and energy would not be conserved: the beam is spread over the ordinates instead (solve()), and
+        // the modes solved so far without the adding are solved again with it.
+        bool aliased = false;
+        for (const detail::SlabModeSolution<Real>& x : solved) aliased = aliased || x.eigen.regularized;
+        if (beam_ && aliased) {
+            beam_.reset();
+            if (slabs_only) {
+                slabs_only = false;
+                size0 = 0;
+                negligible = 0;
+                modes_ = 0;
+                k = -1;
+                continue;
+            }
+        }
         if (beam_) add_beam_mode(k, std::move(solved), stack);
-        add_field_operators(k, below);
-        if (includes(outputs_, LayerOutput::operators))
-            whole_.push_back(add_components(detail::interface_component(*top_ops_, k), below.lower));
+        if (below) {
+            add_field_operators(k, *below);
+            if (includes(outputs_, LayerOutput::operators))
+                whole_.push_back(add_components(detail::interface_component(*top_ops_, k), below->lower));
+        }
         modes_ = k + 1;
         if (!(tolerance > 0)) continue;
-        const Real size = stack.any_rough ? coefficient_size(k, below.bottom) : below.slab_size;
+        const Real size = stack.any_rough ? coefficient_size(k, below->bottom) : slab_size;
         if (k == 0) size0 = size;
         negligible = (k > 0 && size <= tolerance * size0) ? negligible + 1 : 0;
         if (negligible == 2) break;
@@ -1739,11 +1768,18 @@ void LayeredSurface<Real>::add_beam_mode(int k, std::vector<detail::SlabModeSolu
         }
         const std::size_t size = 2 * m * count;
         detail::Matrix<Real> sys = detail::Matrix<Real>::identity(size);
-        // sys(rows of `row`, columns of `col`) -= a b (b: the identity where null), blocks of M
+        // sys(rows of `row`, columns of `col`) -= a b (b: the identity where null), blocks of M; a face's b is
+        // diagonal but for a floor's mode 0
+        const bool full_floor = beam_->floor > 0 && k == 0;
         auto subtract = [&](std::size_t row, std::size_t col, const detail::Matrix<Real>& a, const detail::Matrix<Real>* b) {
-            const detail::Matrix<Real> ab = b ? detail::multiply(a, *b) : a;
+            if (b == &rb && full_floor) {
+                const detail::Matrix<Real> ab = detail::multiply(a, *b);
+                for (std::size_t i = 0; i < m; ++i)
+                    for (std::size_t n = 0; n < m; ++n) sys(row + i, col + n) -= ab(i, n);
+                return;
+            }
             for (std::size_t i = 0; i < m; ++i)
-                for (std::size_t n = 0; n < m; ++n) sys(row + i, col + n) -= ab(i, n);
+                for (std::size_t n = 0; n < m; ++n) sys(row + i, col + n) -= a(i, n) * (b ? (*b)(n, n) : Real(1));
         };
         detail::Matrix<Real> rt(m, m);
         for (std::size_t i = 0; i < m; ++i) rt(i, i) = beam_->r21[i];
@@ -2010,9 +2046,9 @@ void LayeredSurface<Real>::separate_direct_beam(Real scaled_tau, Real true_tau) 
         const DirectBeam beam = direct_beam(q_.nodes[i], direct_tau_);
         if (beam.trapped()) continue;
         const Real bounces = beam.bounces();
-        for (int k = 0; k < modes_; ++k) {
-            qb_[static_cast<std::size_t>(k)](i, i) -= beam.d * beam.d * beam.r23 * bounces;
-            if (want_t) qe_[static_cast<std::size_t>(k)](i, i) -= beam.d * bounces;
+        for (std::size_t k = 0; k < qb_.size(); ++k) {  // (none where the beam is a source and no adding was needed)
+            qb_[k](i, i) -= beam.d * beam.d * beam.r23 * bounces;
+            if (want_t) qe_[k](i, i) -= beam.d * bounces;
         }
     }
 }
