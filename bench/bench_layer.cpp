@@ -172,7 +172,7 @@ void BM_layer_fresnel_slab_fluxes(benchmark::State& state) {
         benchmark::DoNotOptimize(layer.reflectance(1.0).total() + layer.transmittance(1.0));
     }
 }
-BENCHMARK(BM_layer_fresnel_slab_fluxes)->Args({8, 1})->Args({16, 1})->Args({24, 1})->Args({32, 1})->Args({16, 0})->Args({32, 0})
+BENCHMARK(BM_layer_fresnel_slab_fluxes)->Args({8, 1})->Args({16, 1})->Args({18, 1})->Args({24, 1})->Args({32, 1})->Args({16, 0})->Args({32, 0})
     ->Unit(benchmark::kMicrosecond);
 
 // Between smooth faces the beam is a source and the exit an integral of the source function (docs/physics.md

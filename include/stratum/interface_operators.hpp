@@ -450,7 +450,7 @@ public:
             return;
         }
         const detail::RoughKernel<Real> kernel{&*rough_, side, transmission};
-        azimuthal_coefficients(kernel.at(mu_in, mu_out), mu_in, mu_out, kernel.features(mu_in, mu_out), modes, out, rule_);
+        azimuthal_coefficients(kernel.at(mu_in, mu_out), mu_in, mu_out, kernel.features(mu_in, mu_out), modes, out, *rule_);
     }
 
 private:
@@ -528,7 +528,7 @@ private:
     }
 
     std::optional<RoughDielectric<Real>> rough_;  // the rough interface; empty for a smooth one
-    AzimuthalQuadrature<Real> rule_;
+    std::optional<AzimuthalQuadrature<Real>> rule_;  // a rough face's azimuthal rule (a smooth one needs none)
     int modes_;
     bool index_matched_;
     bool specular_;
