@@ -636,14 +636,14 @@ bool beam_stays_on_its_ordinate(const Boundary<Real>& top, const std::vector<Bou
     return true;
 }
 
-/// Whether the beam can be a source exact at its angle (LayeredSurface::beam_field): slabs joined by index-matched
-/// faces under a specular top, over a specular face or a Lambertian floor.
+/// Whether the beam can be a source exact at its angle (LayeredSurface::beam_field): slabs joined by smooth or
+/// index-matched faces under a specular top, over a specular face or a Lambertian floor.
 template <class Real>
 bool beam_is_a_source(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                       const Boundary<Real>& bottom) noexcept {
     if (top.rough() || top.lambertian() || bottom.rough()) return false;
     for (const Boundary<Real>& b : interior)
-        if (b.rough() || b.eta_above() != b.eta_below()) return false;
+        if (b.rough() || b.lambertian()) return false;
     return true;
 }
 
@@ -703,6 +703,11 @@ struct BeamSolution {
     std::vector<Real> r21, r23;
     Real floor = -1;           // a Lambertian floor's albedo (< 0: the bottom is specular)
     bool single_scattering = false;  // LayerOptions::single_scattering_correction
+    std::vector<Real> eta, true_tau;                  // per slab: its index, its true optical thickness
+    std::vector<SmoothDielectric<Real>> joints;       // the faces between slabs (L - 1), top to bottom
+    bool refracting = false;                          // a joint changes the index
+    // per mode and joint, on the ordinates (unscaled): T_12, R_21, T_21, R_12 of the joint
+    std::vector<std::vector<Matrix<Real>>> joint_t_down, joint_r_up, joint_t_up, joint_r_down;
 };
 
 /// The diffuse field of one incidence mu_i between specular faces: per slab the beam's flux entering it going down
@@ -713,10 +718,10 @@ template <class Real>
 struct BeamField {
     Real mu_i = -1;
     int modes = 0;
-    std::vector<Real> flux_down, flux_up;  // per slab
+    std::vector<Real> x, flux_down, flux_up;  // per slab: the beam's cosine (0: it does not reach the slab), fluxes
     Real floor_radiance = 0;  // over a Lambertian floor: its radiance (mode 0, the same in every direction)
     std::vector<BeamResponse<Real>> response;  // per slab
-    std::vector<Real> u, v;
+    std::vector<Real> u, v, d, w;  // per mode and slab: leaving up (u) and down (v), entering from above (d) and below (w)
     bool lit() const noexcept { return !flux_down.empty() && flux_down[0] > 0; }
 };
 
@@ -742,6 +747,7 @@ public:
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
         std::vector<detail::BeamResponse<Real>> beam_y;  // per slab
+        std::vector<Real> small, small_rhs, small_e, path_c, path_e, path_up, path_down;
         std::vector<Real> scratch;
         detail::Matrix<Real> rhs;
     };
@@ -1127,13 +1133,154 @@ private:
         return non_negative(sum);
     }
 
-    // Between specular faces (beam_): the diffuse field of incidence mu_i, modes < `modes` (docs/physics.md section
-    // 6). The refracted beam at mu_t starts down at the top with flux a_down = T_12(mu_i) / (1 - r21 r23 d^2) over all
-    // its passes and up at the bottom with a_up = a_down r23 d (d = e^{-tau/mu_t}, tau the whole thickness); slab j
-    // receives a_down times the transmission of the slabs above it going down, and a_up times that of the slabs below
-    // it going up. Its response to a beam at mu_t (up at its top, down at its bottom, per unit flux; the mirror image
-    // for a beam from below) is the source of the field's system (add_beam_mode). Over a Lambertian floor the beam
-    // reaching it comes back up diffusely: radiance albedo a_down d / pi entering the last slab from below (mode 0).
+    // ---- Between specular faces (beam_): the beam as a source (docs/physics.md section 6) ----
+    // Slab j (of L, top to bottom) has index n_j; joint j (j = 1 .. L-1) is the smooth face between slabs j-1 and j.
+
+    // The cosine in each slab of the direction whose cosine is c_f in slab f (Snell): c[j] = 0 where total internal
+    // reflection at a joint between keeps it out.
+    void snell_chain(std::size_t f, Real c_f, Real* c) const noexcept {
+        const std::vector<Real>& eta = beam_->eta;
+        const Real s_f = (Real(1) - c_f) * (Real(1) + c_f);
+        auto at = [&](std::size_t j, Real previous) {
+            const Real r = eta[f] / eta[j], cc = Real(1) - r * r * s_f;
+            return previous > 0 && cc > 0 ? std::sqrt(cc) : Real(0);
+        };
+        c[f] = c_f;
+        for (std::size_t j = f + 1; j < eta.size(); ++j) c[j] = at(j, c[j - 1]);
+        for (std::size_t j = f; j-- > 0;) c[j] = at(j, c[j + 1]);
+    }
+
+    // Solves the small dense system a x = b in place (n unknowns, a row-major n x n; partial pivoting).
+    static void solve_small(Real* a, Real* b, std::size_t n) noexcept {
+        for (std::size_t k = 0; k < n; ++k) {
+            std::size_t p = k;
+            for (std::size_t i = k + 1; i < n; ++i)
+                if (std::fabs(a[i * n + k]) > std::fabs(a[p * n + k])) p = i;
+            if (p != k) {
+                for (std::size_t j = 0; j < n; ++j) std::swap(a[k * n + j], a[p * n + j]);
+                std::swap(b[k], b[p]);
+            }
+            const Real pivot = a[k * n + k];
+            if (!(pivot != 0)) continue;  // (a row of an unreachable slab: identity, never 0)
+            for (std::size_t i = k + 1; i < n; ++i) {
+                const Real f = a[i * n + k] / pivot;
+                if (f == Real(0)) continue;
+                for (std::size_t j = k; j < n; ++j) a[i * n + j] -= f * a[k * n + j];
+                b[i] -= f * b[k];
+            }
+        }
+        for (std::size_t i = n; i-- > 0;) {
+            Real v = b[i];
+            for (std::size_t j = i + 1; j < n; ++j) v -= a[i * n + j] * b[j];
+            b[i] = a[i * n + i] != 0 ? v / a[i * n + i] : Real(0);
+        }
+    }
+
+    // Light at a single cosine (the beam's, or an exit direction's) bounced through the stack. With c[j] its cosine
+    // in slab j (0: unreachable), e[j] = e^{-tau_j / c[j]}, and the faces' reflectances and transmittances (Fresnel;
+    // `radiance`: the radiance transmittance, with its n^2, else the flux one), unknowns P_j (up at the top of slab j)
+    // and Q_j (down at its bottom):
+    //     P_j = up_j + e_j G_j,   Q_j = down_j + e_j F_j,
+    //     F_0 = r_top P_0 (plus `from_top`), F_j = t_j Q_{j-1} + r_j P_j;  G_{L-1} = r_bottom Q_{L-1}, G_j = t'_{j+1} P_{j+1} + r'_{j+1} Q_j
+    // (over a Lambertian floor r_bottom = 0: the floor's diffuse light is in up_{L-1}). Solved in place: on return
+    // up[j] = P_j and down[j] = Q_j. For the beam: up = 0, down = 0 and from_top = T_12(mu_i) (flux) gives the
+    // flux entering each slab going down, e F (its top), and going up, e G (its bottom).
+    void bounce(const Real* c, const Real* e, bool radiance, Real from_top, Real* up, Real* down, Workspace& ws) const {
+        const std::size_t count = beam_->slabs.size(), n = 2 * count;
+        std::vector<Real>& a = ws.small;
+        std::vector<Real>& x = ws.small_rhs;
+        a.assign(n * n, Real(0));
+        x.assign(n, Real(0));
+        const SmoothDielectric<Real>& top = top_.smooth_interface();
+        const SmoothDielectric<Real>& bottom = bottom_.smooth_interface();
+        auto trans = [&](const SmoothDielectric<Real>& f, Real cosine) {
+            return radiance ? f.radiance_transmittance(cosine) : f.transmittance(cosine);
+        };
+        for (std::size_t j = 0; j < count; ++j) {
+            const std::size_t p = 2 * j, q = 2 * j + 1;  // rows / columns of P_j and Q_j
+            a[p * n + p] = a[q * n + q] = Real(1);
+            if (!(c[j] > 0)) continue;  // unreachable: P_j = Q_j = 0
+            x[p] = up[j];
+            x[q] = down[j];
+            // F_j (down-going entering slab j from above), times e_j, into Q_j's row
+            if (j == 0) {
+                a[q * n + p] -= e[j] * top.reflectance(-c[0]);
+                x[q] += e[j] * from_top;
+            } else {
+                const SmoothDielectric<Real>& joint = beam_->joints[j - 1];
+                a[q * n + (2 * (j - 1) + 1)] -= e[j] * trans(joint, c[j - 1]);
+                a[q * n + p] -= e[j] * joint.reflectance(-c[j]);
+            }
+            // G_j (up-going entering slab j from below), times e_j, into P_j's row
+            if (j + 1 == count) {
+                if (beam_->floor < 0) a[p * n + q] -= e[j] * bottom.reflectance(c[j]);
+            } else {
+                const SmoothDielectric<Real>& joint = beam_->joints[j];
+                if (c[j + 1] > 0) a[p * n + (2 * (j + 1))] -= e[j] * trans(joint, -c[j + 1]);
+                a[p * n + q] -= e[j] * (c[j + 1] > 0 ? joint.reflectance(c[j]) : Real(1));
+            }
+        }
+        solve_small(a.data(), x.data(), n);
+        for (std::size_t j = 0; j < count; ++j) up[j] = x[2 * j], down[j] = x[2 * j + 1];
+    }
+
+    // The beam's passes for incidence mu_i: per slab its cosine x[j], and the flux entering it going down (at its
+    // top, f_down) and going up (at its bottom, f_up), attenuated by the delta-M scaled thicknesses (`scaled`: what the
+    // discrete field loses to it) or the true ones (the unscattered beam). False where no light enters.
+    bool beam_passes(Real mu_i, bool scaled, Real* x, Real* f_down, Real* f_up, Workspace& ws) const {
+        const std::size_t count = beam_->slabs.size();
+        const Real x0 = top_face().internal_cosine(mu_i);
+        const Real entering = top_.smooth_interface().transmittance(mu_i);
+        if (!(x0 > 0) || !(entering > 0)) return false;
+        snell_chain(0, x0, x);
+        std::vector<Real>& e = ws.small_e;
+        e.resize(count);
+        for (std::size_t j = 0; j < count; ++j) {
+            const Real tau = scaled ? beam_->slabs[j].optical_thickness() : beam_->true_tau[j];
+            e[j] = !(x[j] > 0) || std::isinf(tau) ? Real(0) : std::exp(-tau / x[j]);
+            f_down[j] = f_up[j] = 0;
+        }
+        bounce(x, e.data(), false, entering, f_up, f_down, ws);  // P_j, Q_j: up at the top, down at the bottom
+        // the flux entering slab j going down is Q_j's source e_j F_j over e_j; going up, P_j / e_j... taken directly:
+        for (std::size_t j = 0; j < count; ++j) {
+            const Real up_at_top = f_up[j], down_at_bottom = f_down[j];
+            f_down[j] = x[j] > 0 && e[j] > 0 ? down_at_bottom / e[j] : Real(0);
+            f_up[j] = x[j] > 0 && e[j] > 0 ? up_at_top / e[j] : Real(0);
+        }
+        // (with e_j = 0, an opaque slab: what enters it going down is what the faces above send, recomputed)
+        for (std::size_t j = 0; j < count; ++j) {
+            if (!(x[j] > 0) || e[j] > 0) continue;
+            f_up[j] = 0;
+            if (j == 0) f_down[j] = entering;
+            else {
+                const SmoothDielectric<Real>& joint = beam_->joints[j - 1];
+                f_down[j] = joint.transmittance(x[j - 1]) * f_down[j - 1] * e[j - 1];
+            }
+        }
+        return true;
+    }
+
+    // The unscattered beam through a stack whose joints refract (see direct()).
+    Real stack_direct(Real mu_i, bool transmitted, bool scaled) const {
+        Workspace ws;
+        const std::size_t count = beam_->slabs.size();
+        std::vector<Real> x(count), down(count), up(count);
+        if (!beam_passes(mu_i, scaled, x.data(), down.data(), up.data(), ws)) return Real(0);
+        const std::size_t last = count - 1;
+        if (transmitted) {
+            const Real tau = scaled ? beam_->slabs[last].optical_thickness() : beam_->true_tau[last];
+            const Real e = !(x[last] > 0) || std::isinf(tau) ? Real(0) : std::exp(-tau / x[last]);
+            return beam_->floor >= 0 ? Real(0) : down[last] * e * bottom_.smooth_interface().transmittance(x[last]);
+        }
+        const Real tau = scaled ? beam_->slabs[0].optical_thickness() : beam_->true_tau[0];
+        const Real e = std::isinf(tau) ? Real(0) : std::exp(-tau / x[0]);
+        return up[0] * e * top_.smooth_interface().transmittance(-x[0]);
+    }
+
+    // The diffuse field of incidence mu_i, modes < `modes`: each slab's response to the beam's passes (at its own
+    // cosine x_j) is the source of the field's system (add_beam_mode); over a Lambertian floor the beam reaching it
+    // comes back up diffusely, radiance albedo (flux) / pi entering the last slab from below (mode 0). Stored per mode
+    // and slab: what leaves it (u up, v down) and what enters it (d from above, w from below) at the ordinates.
     const detail::BeamField<Real>& beam_field(Real mu_i, int modes, Workspace& ws) const {
         for (std::size_t j = 0; j < cached_beam_.size(); ++j)
             if (cached_beam_[j].mu_i == mu_i && cached_beam_[j].modes >= modes) return cached_beam_[j];
@@ -1144,53 +1291,44 @@ private:
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes), count = beam_->slabs.size();
         f.mu_i = mu_i;
         f.modes = modes;
+        f.x.assign(count, Real(0));
         f.flux_down.assign(count, Real(0));
         f.flux_up.assign(count, Real(0));
         f.floor_radiance = 0;
         f.response.resize(count);
-        f.u.assign(kk * count * m, Real(0));
-        f.v.assign(kk * count * m, Real(0));
-        const Real mu_t = top_face().internal_cosine(mu_i);
-        if (!(mu_t > 0)) return;
-        const DirectBeam beam = direct_beam(mu_t, direct_tau_);
-        if (beam.trapped()) return;
-        const Real a_down = top_.smooth_interface().transmittance(mu_i) * beam.bounces();
-        Real above = a_down;
-        for (std::size_t j = 0; j < count; ++j) {
-            f.flux_down[j] = above;
-            const Real tau = beam_->slabs[j].optical_thickness();
-            above *= std::isinf(tau) ? Real(0) : std::exp(-tau / mu_t);
+        for (std::vector<Real>* v : {&f.u, &f.v, &f.d, &f.w}) v->assign(kk * count * m, Real(0));
+        if (!beam_passes(mu_i, true, f.x.data(), f.flux_down.data(), f.flux_up.data(), ws)) {
+            f.flux_down.assign(count, Real(0));
+            return;
         }
-        Real below = a_down * beam.r23 * beam.d;
-        for (std::size_t j = count; j-- > 0;) {
-            f.flux_up[j] = below;
-            const Real tau = beam_->slabs[j].optical_thickness();
-            below *= std::isinf(tau) ? Real(0) : std::exp(-tau / mu_t);
-        }
-        for (std::size_t j = 0; j < count; ++j) beam_->slabs[j].respond(mu_t, modes, f.response[j], ws.scratch);
-        const Real floor_beam = beam_->floor > 0 ? beam_->floor * a_down * beam.d / detail::pi_v<Real> : Real(0);
+        for (std::size_t j = 0; j < count; ++j)
+            if (f.x[j] > 0) beam_->slabs[j].respond(f.x[j], modes, f.response[j], ws.scratch);
+        const std::size_t last = count - 1;
+        const Real tau_last = beam_->slabs[last].optical_thickness();
+        const Real e_last = std::isinf(tau_last) || !(f.x[last] > 0) ? Real(0) : std::exp(-tau_last / f.x[last]);
+        const Real floor_flux = f.flux_down[last] * e_last;  // the beam reaching the bottom
+        const Real floor_beam = beam_->floor > 0 ? beam_->floor * floor_flux / detail::pi_v<Real> : Real(0);
         const std::size_t size = 2 * m * count;
         if (ws.rhs.rows != size) ws.rhs = detail::Matrix<Real>(size, 1);
         for (std::size_t k = 0; k < kk; ++k) {
             const detail::LU<Real>& lu = beam_->lu[k];
             if (lu.pivot.empty()) continue;
             for (std::size_t j = 0; j < count; ++j) {  // scaled variables (C = diag(sqrt(w mu)), as the factors)
-                const Real* up = f.response[j].up.data() + k * m;
-                const Real* down = f.response[j].down.data() + k * m;
+                const bool lit = f.x[j] > 0;
                 for (std::size_t n = 0; n < m; ++n) {
                     const Real c = std::sqrt(q_.weights[n] * q_.nodes[n]);
-                    ws.rhs(2 * m * j + n, 0) = c * (f.flux_down[j] * up[n] + f.flux_up[j] * down[n]);
-                    ws.rhs(2 * m * j + m + n, 0) = c * (f.flux_down[j] * down[n] + f.flux_up[j] * up[n]);
+                    const Real up = lit ? f.response[j].up[k * m + n] : Real(0), down = lit ? f.response[j].down[k * m + n] : Real(0);
+                    ws.rhs(2 * m * j + n, 0) = c * (f.flux_down[j] * up + f.flux_up[j] * down);
+                    ws.rhs(2 * m * j + m + n, 0) = c * (f.flux_down[j] * down + f.flux_up[j] * up);
                 }
             }
             if (k == 0 && floor_beam > 0) {
-                const detail::SlabBeamMode<Real>& md = beam_->slabs[count - 1].mode(0);
-                const std::size_t last = 2 * m * (count - 1);
+                const detail::SlabBeamMode<Real>& md = beam_->slabs[last].mode(0);
                 for (std::size_t n = 0; n < m; ++n)
                     for (std::size_t i = 0; i < m; ++i) {
                         const Real w = std::sqrt(q_.weights[i] * q_.nodes[i]) * floor_beam;
-                        ws.rhs(last + n, 0) += md.t(n, i) * w;
-                        ws.rhs(last + m + n, 0) += md.r(n, i) * w;
+                        ws.rhs(2 * m * last + n, 0) += md.t(n, i) * w;
+                        ws.rhs(2 * m * last + m + n, 0) += md.r(n, i) * w;
                     }
             }
             detail::lu_solve(lu, ws.rhs);
@@ -1200,117 +1338,149 @@ private:
                     f.u[(k * count + j) * m + n] = ws.rhs(2 * m * j + n, 0) / c;
                     f.v[(k * count + j) * m + n] = ws.rhs(2 * m * j + m + n, 0) / c;
                 }
+            entering(k, f, floor_beam);
         }
         if (beam_->floor > 0 && kk > 0) {  // the floor's radiance: albedo / pi times the flux reaching it
-            Real flux = a_down * beam.d;
-            const Real* v = f.v.data() + (count - 1) * m;
+            Real flux = floor_flux;
+            const Real* v = f.v.data() + last * m;
             for (std::size_t n = 0; n < m; ++n) flux += 2 * detail::pi_v<Real> * q_.weights[n] * q_.nodes[n] * v[n];
             f.floor_radiance = beam_->floor * flux / detail::pi_v<Real>;
+            for (std::size_t n = 0; n < m; ++n) f.w[last * m + n] = f.floor_radiance;  // (mode 0: the floor's light)
+        }
+    }
+
+    // Mode k of what enters each slab at the ordinates (d from above, w from below; unscaled), from what leaves them
+    // (add_beam_mode's connections). Over a floor, w of the last slab is set from its radiance by the caller (mode 0).
+    void entering(std::size_t k, detail::BeamField<Real>& f, Real floor_beam) const {
+        const std::size_t m = q_.size(), count = beam_->slabs.size();
+        (void)floor_beam;
+        for (std::size_t j = 0; j < count; ++j) {
+            Real* d = f.d.data() + (k * count + j) * m;
+            Real* w = f.w.data() + (k * count + j) * m;
+            const Real* u_j = f.u.data() + (k * count + j) * m;
+            const Real* v_j = f.v.data() + (k * count + j) * m;
+            if (j == 0) {
+                for (std::size_t n = 0; n < m; ++n) d[n] = beam_->r21[n] * u_j[n];
+            } else {
+                const Real* v_above = f.v.data() + (k * count + j - 1) * m;
+                const detail::Matrix<Real>& t = beam_->joint_t_down[k][j - 1];
+                const detail::Matrix<Real>& r = beam_->joint_r_up[k][j - 1];
+                for (std::size_t n = 0; n < m; ++n) {
+                    Real s = 0;
+                    for (std::size_t i = 0; i < m; ++i) s += t(n, i) * v_above[i] + r(n, i) * u_j[i];
+                    d[n] = s;
+                }
+            }
+            if (j + 1 == count) {
+                if (beam_->floor < 0)
+                    for (std::size_t n = 0; n < m; ++n) w[n] = beam_->r23[n] * v_j[n];
+            } else {
+                const Real* u_below = f.u.data() + (k * count + j + 1) * m;
+                const detail::Matrix<Real>& t = beam_->joint_t_up[k][j];
+                const detail::Matrix<Real>& r = beam_->joint_r_down[k][j];
+                for (std::size_t n = 0; n < m; ++n) {
+                    Real s = 0;
+                    for (std::size_t i = 0; i < m; ++i) s += t(n, i) * u_below[i] + r(n, i) * v_j[i];
+                    w[n] = s;
+                }
+            }
         }
     }
 
     // Mode k of the diffuse radiance leaving the layer at |cosine| mu_o outside (through the top, or through the
-    // bottom when `transmitted`), for the field f, per mode into out[k] (k < f.modes; 0 where nothing leaves). At the
-    // internal cosine y (Snell) slab j emits, up at its top and down at its bottom,
-    //     E_up = f_down r(y) + f_up t(y) + row_r(y) D_j + row_t(y) W_j,   E_down = f_down t(y) + f_up r(y) + row_t D_j + row_r W_j
-    // (r, t: its radiance at y for the beam, f_down and f_up the beam's fluxes entering it; rows: its radiance at y
-    // per unit radiance entering at the ordinates, D_j and W_j as in add_beam_mode: detail/beam_source.hpp). Light at
-    // y crosses the other slabs unscattered (what they scatter out of a single direction carries no flux), so the
-    // radiance arriving at the top face is Eu = sum_j E_up,j e^{-(tau above j)/y} and at the bottom face
-    // Ed = sum_j E_down,j e^{-(tau below j)/y}; the faces bounce it at y as a geometric series,
-    //     up at the top (Eu + e r23 Ed) / (1 - r21 r23 e^2),  down at the bottom (Ed + e r21 Eu) / (...),
-    // e = e^{-tau/y}; the face's radiance transmittance takes it out. Over a Lambertian floor the radiance arriving
-    // at the top is Eu + e L_floor (mode 0), and nothing bounces at y (it carries no flux onto the floor).
+    // bottom when `transmitted`), for the field f, per mode into out[k] (k < f.modes; 0 where nothing leaves). At its
+    // cosine y_j in slab j (Snell) slab j emits, up at its top and down at its bottom,
+    //     E_up = f_down r(y) + f_up t(y) + row_r(y) d_j + row_t(y) w_j,   E_down = f_down t(y) + f_up r(y) + row_t d_j + row_r w_j
+    // (r, t: its radiance at y for the beam; rows: its radiance at y per unit radiance entering at the ordinates:
+    // detail/beam_source.hpp); light at a single cosine crosses the slabs unscattered (what they scatter out of it
+    // carries no flux) and bounces between the faces and joints (bounce()); the face's radiance transmittance takes
+    // it out. Over a Lambertian floor the floor's radiance comes up into the last slab's bottom at every y (mode 0).
     void beam_exit(const detail::BeamField<Real>& f, Real mu_o, bool transmitted, Real* out, Workspace& ws) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(f.modes), count = beam_->slabs.size();
         std::fill(out, out + kk, Real(0));
-        const Face face = transmitted ? bottom_face() : top_face();
-        const Real y = face.internal_cosine(mu_o);
-        if (!(y > 0) || !f.lit()) return;
-        const Real leave = face.boundary().smooth_interface().radiance_transmittance(face.from_inside(y));
-        if (!(leave > 0)) return;
+        if (!f.lit() || !exit_path(mu_o, transmitted, ws)) return;
+        const Real* y = ws.path_c.data();
+        const Real* e = ws.path_e.data();
         ws.beam_y.resize(count);
-        std::vector<Real>& attenuation = ws.in;  // e^{-tau_j / y}
-        std::vector<Real>& emitted_down = ws.shape;
-        attenuation.resize(count);
-        emitted_down.resize(count);
-        Real e = 1;
-        for (std::size_t j = 0; j < count; ++j) {
-            const Real tau = beam_->slabs[j].optical_thickness();
-            attenuation[j] = std::isinf(tau) ? Real(0) : std::exp(-tau / y);
-            e *= attenuation[j];
-            beam_->slabs[j].respond(y, f.modes, ws.beam_y[j], ws.scratch);
-        }
-        const Real r21_y = top_.smooth_interface().reflectance(-y), r23_y = bottom_.smooth_interface().reflectance(y);
-        const Real loss = Real(1) - r21_y * r23_y * e * e;
+        for (std::size_t j = 0; j < count; ++j)
+            if (y[j] > 0) beam_->slabs[j].respond(y[j], f.modes, ws.beam_y[j], ws.scratch);
         const Real two_pi = 2 * detail::pi_v<Real>;
+        std::vector<Real>& up = ws.path_up;
+        std::vector<Real>& down = ws.path_down;
         for (std::size_t k = 0; k < kk; ++k) {
             const Real scale = two_pi / (k == 0 ? Real(1) : Real(2));
-            const Real floor = beam_->floor > 0 && k == 0 ? f.floor_radiance : Real(0);
-            Real eu = 0, ed = 0, above = 1;
+            up.assign(count, Real(0));
+            down.assign(count, Real(0));
             for (std::size_t j = 0; j < count; ++j) {
+                if (!(y[j] > 0) || !(f.x[j] > 0)) continue;
                 Real r = 0, t = 0;
                 beam_->slabs[j].exit(f.response[j], ws.beam_y[j], static_cast<int>(k), &r, &t);
-                Real up = f.flux_down[j] * r + f.flux_up[j] * t, down = f.flux_down[j] * t + f.flux_up[j] * r;
-                const Real* u_below = j + 1 < count ? f.u.data() + (k * count + j + 1) * m : nullptr;
-                const Real* v_above = j > 0 ? f.v.data() + (k * count + j - 1) * m : nullptr;
-                const Real* u_top = f.u.data() + k * count * m;
-                const Real* v_last = f.v.data() + (k * count + count - 1) * m;
+                Real eu = f.flux_down[j] * r + f.flux_up[j] * t, ed = f.flux_down[j] * t + f.flux_up[j] * r;
+                const Real* d = f.d.data() + (k * count + j) * m;
+                const Real* w = f.w.data() + (k * count + j) * m;
                 for (std::size_t n = 0; n < m; ++n) {
                     const Real wm = scale * q_.weights[n] * q_.nodes[n];
                     const Real row_r = wm * ws.beam_y[j].up[k * m + n], row_t = wm * ws.beam_y[j].down[k * m + n];
-                    const Real d = v_above ? v_above[n] : beam_->r21[n] * u_top[n];
-                    const Real w = u_below ? u_below[n] : beam_->r23[n] * v_last[n] + floor;
-                    up += row_r * d + row_t * w;
-                    down += row_t * d + row_r * w;
+                    eu += row_r * d[n] + row_t * w[n];
+                    ed += row_t * d[n] + row_r * w[n];
                 }
-                eu += above * up;
-                above *= attenuation[j];
-                emitted_down[j] = down;
+                up[j] = eu;
+                down[j] = ed;
             }
-            Real below = 1;
-            for (std::size_t j = count; j-- > 0;) {
-                ed += below * emitted_down[j];
-                below *= attenuation[j];
-            }
-            if (beam_->floor >= 0) out[k] = transmitted ? Real(0) : leave * (eu + e * floor);
-            else out[k] = leave * (transmitted ? ed + e * r21_y * eu : eu + e * r23_y * ed) / loss;
+            // (the emissions of slabs the exit direction cannot reach do not leave at it: a slab below a joint that
+            // totally reflects y, whose rows were not computed, has y[j] = 0)
+            if (beam_->floor >= 0 && k == 0 && y[count - 1] > 0) up[count - 1] += e[count - 1] * f.floor_radiance;
+            out[k] = leave(transmitted, up.data(), down.data(), ws);
         }
     }
 
+    // The exit direction's cosines per slab (ws.path_c, from |cosine| mu_o outside through the top or the bottom) and
+    // their attenuations (ws.path_e); false where it reaches no slab.
+    bool exit_path(Real mu_o, bool transmitted, Workspace& ws) const {
+        const std::size_t count = beam_->slabs.size();
+        ws.path_c.assign(count, Real(0));
+        ws.path_e.assign(count, Real(0));
+        const Face face = transmitted ? bottom_face() : top_face();
+        const Real y_face = face.internal_cosine(mu_o);
+        if (!(y_face > 0)) return false;
+        snell_chain(transmitted ? count - 1 : 0, y_face, ws.path_c.data());
+        for (std::size_t j = 0; j < count; ++j) {
+            const Real tau = beam_->slabs[j].optical_thickness();
+            ws.path_e[j] = !(ws.path_c[j] > 0) || std::isinf(tau) ? Real(0) : std::exp(-tau / ws.path_c[j]);
+        }
+        return true;
+    }
+
+    // The radiance leaving through the top (or bottom) for slab emissions up / down at the exit path's cosines.
+    Real leave(bool transmitted, Real* up, Real* down, Workspace& ws) const {
+        const std::size_t count = beam_->slabs.size();
+        bounce(ws.path_c.data(), ws.path_e.data(), true, Real(0), up, down, ws);
+        if (transmitted)
+            return beam_->floor >= 0 ? Real(0)
+                                     : bottom_.smooth_interface().radiance_transmittance(ws.path_c[count - 1]) * down[count - 1];
+        return top_.smooth_interface().radiance_transmittance(-ws.path_c[0]) * up[0];
+    }
+
     // LayerOptions::single_scattering_correction: each slab's exact-minus-truncated single scattering of the beam's
-    // passes (SlabBeam::single_scattering_correction; a beam going up sends out the mirror image), taken to the face
-    // at y through the other slabs and the faces' bounces as in beam_exit.
+    // passes (SlabBeam::single_scattering_correction; a beam going up sends out the mirror image), taken out as in
+    // beam_exit.
     Real single_scattering_correction(const detail::BeamField<Real>& f, Real mu_o, Real cos_dphi, bool transmitted,
                                       Workspace& ws) const {
         const std::size_t count = beam_->slabs.size();
-        const Face face = transmitted ? bottom_face() : top_face();
-        const Real y = face.internal_cosine(mu_o), x = top_face().internal_cosine(f.mu_i);
-        if (!(y > 0) || !(x > 0) || !f.lit()) return Real(0);
-        const Real leave = face.boundary().smooth_interface().radiance_transmittance(face.from_inside(y));
-        std::vector<Real>& attenuation = ws.in;
-        std::vector<Real>& emitted_down = ws.shape;
-        attenuation.resize(count);
-        emitted_down.resize(count);
-        Real eu = 0, ed = 0, e = 1;
+        if (!f.lit() || !exit_path(mu_o, transmitted, ws)) return Real(0);
+        std::vector<Real>& up = ws.path_up;
+        std::vector<Real>& down = ws.path_down;
+        up.assign(count, Real(0));
+        down.assign(count, Real(0));
         for (std::size_t j = 0; j < count; ++j) {
-            const Real tau = beam_->slabs[j].optical_thickness();
+            const Real y = ws.path_c[j];
+            if (!(y > 0) || !(f.x[j] > 0)) continue;
             Real r = 0, t = 0;
-            beam_->slabs[j].single_scattering_correction(x, y, cos_dphi, &r, &t);
-            eu += e * (f.flux_down[j] * r + f.flux_up[j] * t);
-            emitted_down[j] = f.flux_down[j] * t + f.flux_up[j] * r;
-            attenuation[j] = std::isinf(tau) ? Real(0) : std::exp(-tau / y);
-            e *= attenuation[j];
+            beam_->slabs[j].single_scattering_correction(f.x[j], y, cos_dphi, &r, &t);
+            up[j] = f.flux_down[j] * r + f.flux_up[j] * t;
+            down[j] = f.flux_down[j] * t + f.flux_up[j] * r;
         }
-        Real below = 1;
-        for (std::size_t j = count; j-- > 0;) {
-            ed += below * emitted_down[j];
-            below *= attenuation[j];
-        }
-        if (beam_->floor >= 0) return transmitted ? Real(0) : leave * eu;
-        const Real r21_y = top_.smooth_interface().reflectance(-y), r23_y = bottom_.smooth_interface().reflectance(y);
-        const Real loss = Real(1) - r21_y * r23_y * e * e;
-        return leave * (transmitted ? ed + e * r21_y * eu : eu + e * r23_y * ed) / loss;
+        return leave(transmitted, up.data(), down.data(), ws);
     }
 
     // brdf/btdf between specular faces: the modes of beam_exit summed at the azimuth of wo from -wi.
@@ -1422,6 +1592,7 @@ private:
     // reflection there, through the top with T_21.
     Real direct(Real mu_i, bool transmitted, Real tau) const {
         if (!direct_separated_) return Real(0);
+        if (beam_ && beam_->refracting) return stack_direct(mu_i, transmitted, tau == direct_tau_);
         const Real mu_t = top_face().internal_cosine(mu_i);
         if (!(mu_t > 0)) return Real(0);
         // Trapped: rounding puts mu_t exactly on the critical cosine for grazing incidence (mu_i^2 below the rounding
@@ -1648,6 +1819,14 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         }
         if (bottom.lambertian()) s.beam_->floor = bottom.floor_albedo();
         s.beam_->single_scattering = options.single_scattering_correction;
+        s.beam_->eta.push_back(top.eta_below());
+        for (const Boundary<Real>& b : interior) {
+            s.beam_->joints.push_back(b.smooth_interface());
+            s.beam_->eta.push_back(b.eta_below());
+            s.beam_->refracting = s.beam_->refracting || b.eta_above() != b.eta_below();
+        }
+        for (const Slab<Real>& slab : slabs) s.beam_->true_tau.push_back(slab.optical_thickness());
+        if (s.beam_->refracting) s.direct_separated_ = !bottom.lambertian();
         s.direct_tau_ = scaled_tau;
         s.beam_tau_ = std::isinf(scaled_tau) ? scaled_tau : true_tau;
     }
@@ -1700,6 +1879,7 @@ void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack,
         bool aliased = false;
         for (const detail::SlabModeSolution<Real>& x : solved) aliased = aliased || x.eigen.regularized;
         if (beam_ && aliased) {
+            if (beam_->refracting) direct_separated_ = false;  // (the spread keeps the beam in the field there)
             beam_.reset();
             if (slabs_only) {
                 slabs_only = false;
@@ -1728,7 +1908,8 @@ void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack,
 // Step 4, between specular faces: mode k of each slab's beam source (its eigen-solution, R~ and T~) and the LU
 // factors of the diffuse field's system in scaled variables (beam_field). Unknowns, per slab j of L: the radiance
 // leaving it up through its top (U_j) and down through its bottom (V_j); what enters it is
-//     from above  D_j = r21 U_0 (j = 0) or V_{j-1},      from below  W_j = r23 V_{L-1} (j = L - 1) or U_{j+1},
+//     from above  D_j = r21 U_0 (j = 0) or T_12 V_{j-1} + R_21 U_j (the joint's operators),
+//     from below  W_j = r23 V_{L-1} (j = L - 1) or T_21 U_{j+1} + R_12 V_j
 // (an index-matched joint passes light unchanged; over a Lambertian floor, mode 0, r23 is the rank-one 2 albedo c c^T,
 // radiance albedo / pi times the flux 2 pi sum_m w_m mu_m V_m), and the slab's equations are
 //     U_j - R_j D_j - T_j W_j = source,   V_j - T_j D_j - R_j W_j = source.
@@ -1757,22 +1938,52 @@ void LayeredSurface<Real>::add_beam_mode(int k, std::vector<detail::SlabModeSolu
         md.t = std::move(x.t_scaled);
         beam_->slabs[j].add_mode(std::move(md));
     }
+    // The joints' operators of mode k (the identity and 0 where a joint is index matched), kept unscaled for
+    // LayeredSurface::entering and scaled (X~ = C X C^-1) for the system.
+    std::vector<detail::Matrix<Real>> t_down, r_up, t_up, r_down;
+    for (std::size_t i = 0; i + 1 < count; ++i) {
+        const SmoothDielectric<Real>& joint = beam_->joints[i];
+        if (joint.eta_above() == joint.eta_below()) {
+            t_down.push_back(detail::Matrix<Real>::identity(m));
+            t_up.push_back(detail::Matrix<Real>::identity(m));
+            r_up.emplace_back(m, m);
+            r_down.emplace_back(m, m);
+        } else {
+            const InterfaceOperators<Real>& ops = *stack.interior[i];
+            t_down.push_back(detail::mode_matrix(ops.T12(), k));
+            r_up.push_back(detail::mode_matrix(ops.R21(), k));
+            t_up.push_back(detail::mode_matrix(ops.T21(), k));
+            r_down.push_back(detail::mode_matrix(ops.R12(), k));
+        }
+    }
+    beam_->joint_t_down.push_back(t_down);
+    beam_->joint_r_up.push_back(r_up);
+    beam_->joint_t_up.push_back(t_up);
+    beam_->joint_r_down.push_back(r_down);
+    std::vector<Real> c(m);
+    for (std::size_t i = 0; i < m; ++i) c[i] = std::sqrt(q_.weights[i] * q_.nodes[i]);
+    for (std::vector<detail::Matrix<Real>>* v : {&t_down, &r_up, &t_up, &r_down})
+        for (detail::Matrix<Real>& x : *v)
+            for (std::size_t i = 0; i < m; ++i)
+                for (std::size_t n = 0; n < m; ++n) x(i, n) *= c[i] / c[n];
     detail::LU<Real> lu;
     if (diffuse) {  // (without scattering or a floor, no diffuse field: no factors)
         detail::Matrix<Real> rb(m, m);  // the bottom's reflection (scaled)
         for (std::size_t i = 0; i < m; ++i) {
             rb(i, i) = beam_->r23[i];
             if (beam_->floor > 0 && k == 0)
-                for (std::size_t j = 0; j < m; ++j)
-                    rb(i, j) = 2 * beam_->floor * std::sqrt(q_.weights[i] * q_.nodes[i] * q_.weights[j] * q_.nodes[j]);
+                for (std::size_t j = 0; j < m; ++j) rb(i, j) = 2 * beam_->floor * c[i] * c[j];
         }
+        detail::Matrix<Real> rt(m, m);
+        for (std::size_t i = 0; i < m; ++i) rt(i, i) = beam_->r21[i];
         const std::size_t size = 2 * m * count;
         detail::Matrix<Real> sys = detail::Matrix<Real>::identity(size);
-        // sys(rows of `row`, columns of `col`) -= a b (b: the identity where null), blocks of M; a face's b is
-        // diagonal but for a floor's mode 0
+        // sys(rows of `row`, columns of `col`) -= a b (b: the identity where null), blocks of M; diagonal b (a face's
+        // reflection, but for a floor's mode 0) without a product
         const bool full_floor = beam_->floor > 0 && k == 0;
-        auto subtract = [&](std::size_t row, std::size_t col, const detail::Matrix<Real>& a, const detail::Matrix<Real>* b) {
-            if (b == &rb && full_floor) {
+        auto subtract = [&](std::size_t row, std::size_t col, const detail::Matrix<Real>& a, const detail::Matrix<Real>* b,
+                            bool diagonal) {
+            if (b && !diagonal) {
                 const detail::Matrix<Real> ab = detail::multiply(a, *b);
                 for (std::size_t i = 0; i < m; ++i)
                     for (std::size_t n = 0; n < m; ++n) sys(row + i, col + n) -= ab(i, n);
@@ -1781,19 +1992,33 @@ void LayeredSurface<Real>::add_beam_mode(int k, std::vector<detail::SlabModeSolu
             for (std::size_t i = 0; i < m; ++i)
                 for (std::size_t n = 0; n < m; ++n) sys(row + i, col + n) -= a(i, n) * (b ? (*b)(n, n) : Real(1));
         };
-        detail::Matrix<Real> rt(m, m);
-        for (std::size_t i = 0; i < m; ++i) rt(i, i) = beam_->r21[i];
         for (std::size_t j = 0; j < count; ++j) {
             const detail::SlabBeamMode<Real>& md = beam_->slabs[j].mode(k);
             const std::size_t up = 2 * m * j, down = up + m;
-            // D_j: from U_0 through the top face, or V_{j-1}; W_j: from V_{L-1} through the bottom, or U_{j+1}
-            const std::size_t d_col = j == 0 ? 0 : 2 * m * (j - 1) + m, w_col = j + 1 == count ? down : 2 * m * (j + 1);
-            const detail::Matrix<Real>* d_face = j == 0 ? &rt : nullptr;
-            const detail::Matrix<Real>* w_face = j + 1 == count ? &rb : nullptr;
-            subtract(up, d_col, md.r, d_face);
-            subtract(up, w_col, md.t, w_face);
-            subtract(down, d_col, md.t, d_face);
-            subtract(down, w_col, md.r, w_face);
+            // What enters slab j, as (operator, unknown) terms: D_j from above, W_j from below (add_beam_mode's
+            // comment); each slab equation takes R_j and T_j of them.
+            auto take = [&](const detail::Matrix<Real>& r_or_t, std::size_t row) {
+                if (j == 0) {
+                    subtract(row, up, r_or_t, &rt, true);
+                } else {
+                    const bool matched = beam_->joints[j - 1].eta_above() == beam_->joints[j - 1].eta_below();
+                    subtract(row, 2 * m * (j - 1) + m, r_or_t, matched ? nullptr : &t_down[j - 1], matched);
+                    if (!matched) subtract(row, up, r_or_t, &r_up[j - 1], false);
+                }
+            };
+            auto take_below = [&](const detail::Matrix<Real>& r_or_t, std::size_t row) {
+                if (j + 1 == count) {
+                    subtract(row, down, r_or_t, &rb, !full_floor);
+                } else {
+                    const bool matched = beam_->joints[j].eta_above() == beam_->joints[j].eta_below();
+                    subtract(row, 2 * m * (j + 1), r_or_t, matched ? nullptr : &t_up[j], matched);
+                    if (!matched) subtract(row, down, r_or_t, &r_down[j], false);
+                }
+            };
+            take(md.r, up);
+            take_below(md.t, up);
+            take(md.t, down);
+            take_below(md.r, down);
         }
         lu = detail::lu_factor(std::move(sys));
     }
@@ -1945,8 +2170,7 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::bea
     detail::BeamResponse<Real> a, b;
     detail::Matrix<Real> rhs(m, 1);
     std::vector<Real> d0(m), w(m), s_b(m);
-    for (std::size_t n = 0; n < m; ++n)
-        d0[n] = beam_->r21[n] * f.u[n], w[n] = beam_->floor >= 0 ? f.floor_radiance : beam_->r23[n] * f.v[n];
+    for (std::size_t n = 0; n < m; ++n) d0[n] = f.d[n], w[n] = f.w[n];
     for (const BeamDepth& d : beam_depths_) {
         Real fluence = 0, net = 0;
         if (f.lit()) {
