@@ -746,7 +746,12 @@ public:
         // between specular faces (the beam as a source): the field of an incidence computed on the fly, the slab's
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
-        std::vector<detail::BeamResponse<Real>> beam_y;  // per slab
+        std::vector<detail::BeamResponse<Real>> beam_y[2];  // per side (reflection, transmission), per slab
+        struct {  // what beam_y[side] holds: the layer's beam source, the exit cosine, the modes
+            const void* owner = nullptr;
+            Real mu_o = -1;
+            int modes = 0;
+        } beam_y_key[2];
         std::vector<Real> small, small_rhs, small_e, path_c, path_e, path_up, path_down;
         std::vector<Real> scratch;
         detail::Matrix<Real> rhs;
@@ -1401,9 +1406,15 @@ private:
         if (!f.lit() || !exit_path(mu_o, transmitted, ws)) return;
         const Real* y = ws.path_c.data();
         const Real* e = ws.path_e.data();
-        ws.beam_y.resize(count);
-        for (std::size_t j = 0; j < count; ++j)
-            if (y[j] > 0) beam_->slabs[j].respond(y[j], f.modes, ws.beam_y[j], ws.scratch);
+        // (the slabs' responses to a beam at the exit cosines: the same for every incidence and azimuth)
+        std::vector<detail::BeamResponse<Real>>& at_y = ws.beam_y[transmitted ? 1 : 0];
+        auto& key = ws.beam_y_key[transmitted ? 1 : 0];
+        if (key.owner != beam_.get() || key.mu_o != mu_o || key.modes < f.modes) {
+            at_y.resize(count);
+            for (std::size_t j = 0; j < count; ++j)
+                if (y[j] > 0) beam_->slabs[j].respond(y[j], f.modes, at_y[j], ws.scratch);
+            key = {beam_.get(), mu_o, f.modes};
+        }
         const Real two_pi = 2 * detail::pi_v<Real>;
         std::vector<Real>& up = ws.path_up;
         std::vector<Real>& down = ws.path_down;
@@ -1414,13 +1425,13 @@ private:
             for (std::size_t j = 0; j < count; ++j) {
                 if (!(y[j] > 0) || !(f.x[j] > 0)) continue;
                 Real r = 0, t = 0;
-                beam_->slabs[j].exit(f.response[j], ws.beam_y[j], static_cast<int>(k), &r, &t);
+                beam_->slabs[j].exit(f.response[j], at_y[j], static_cast<int>(k), &r, &t);
                 Real eu = f.flux_down[j] * r + f.flux_up[j] * t, ed = f.flux_down[j] * t + f.flux_up[j] * r;
                 const Real* d = f.d.data() + (k * count + j) * m;
                 const Real* w = f.w.data() + (k * count + j) * m;
                 for (std::size_t n = 0; n < m; ++n) {
                     const Real wm = scale * q_.weights[n] * q_.nodes[n];
-                    const Real row_r = wm * ws.beam_y[j].up[k * m + n], row_t = wm * ws.beam_y[j].down[k * m + n];
+                    const Real row_r = wm * at_y[j].up[k * m + n], row_t = wm * at_y[j].down[k * m + n];
                     eu += row_r * d[n] + row_t * w[n];
                     ed += row_t * d[n] + row_r * w[n];
                 }
