@@ -248,3 +248,24 @@ TEST_CASE("hard incidences: on an ordinate, at the pole, at grazing, at the crit
     close(1e-9, 2e-9, 0.5, 1e-5);    // grazing: the refracted beam at the critical cosine
     CHECK(layer.subsurface_brdf(direction(1e-300, 0.0), wo) >= 0);
 }
+
+TEST_CASE("a phase function given by its Legendre moments gets the same intensities and correction as the closed form") {
+    // Henyey-Greenstein g = 0.75 as 300 moments (Slab::with_phase_moments): delta-M truncates at chi_2M as for the
+    // closed form, and the single-scattering correction sums the moments given where it would use the closed form
+    // (g^300 ~ 3e-38: the same function).
+    const std::vector<double> chi = stratum::HenyeyGreenstein<double>(0.75).legendre_moments(300);
+    LayerOptions o;
+    o.ordinates = 12;
+    o.single_scattering_correction = true;
+    const auto closed = solve_layer(Slab<double>(0.9, 0.75, 1.0), Boundary<double>::index_matched(),
+                                    Boundary<double>::index_matched(), o);
+    const auto given = solve_layer(Slab<double>::with_phase_moments(0.9, chi, 1.0), Boundary<double>::index_matched(),
+                                   Boundary<double>::index_matched(), o);
+    const Vec3<double> wi = direction(0.5, 0.0);
+    for (const double mu : {0.1, 0.5, 0.999})
+        for (const double phi : {0.0, 1.0, 3.14159}) {
+            const Vec3<double> up = direction(mu, phi), down = direction(-mu, phi);
+            CHECK(given.subsurface_brdf(wi, up) == doctest::Approx(closed.subsurface_brdf(wi, up)).epsilon(1e-12));
+            CHECK(given.btdf(wi, down) == doctest::Approx(closed.btdf(wi, down)).epsilon(1e-12));
+        }
+}
