@@ -1246,22 +1246,31 @@ private:
             f_down[j] = f_up[j] = 0;
         }
         bounce(x, e.data(), false, entering, f_up, f_down, ws);  // P_j, Q_j: up at the top, down at the bottom
-        // the flux entering slab j going down is Q_j's source e_j F_j over e_j; going up, P_j / e_j... taken directly:
+        // The fluxes entering each slab, F_j from above and G_j from below, from P and Q by the connections of
+        // bounce() (not as P / e and Q / e: e underflows for an opaque slab).
+        std::vector<Real>& p = ws.small_rhs;  // (bounce's scratch, free again)
+        p.assign(2 * count, Real(0));
+        const SmoothDielectric<Real>& top = top_.smooth_interface();
         for (std::size_t j = 0; j < count; ++j) {
-            const Real up_at_top = f_up[j], down_at_bottom = f_down[j];
-            f_down[j] = x[j] > 0 && e[j] > 0 ? down_at_bottom / e[j] : Real(0);
-            f_up[j] = x[j] > 0 && e[j] > 0 ? up_at_top / e[j] : Real(0);
-        }
-        // (with e_j = 0, an opaque slab: what enters it going down is what the faces above send, recomputed)
-        for (std::size_t j = 0; j < count; ++j) {
-            if (!(x[j] > 0) || e[j] > 0) continue;
-            f_up[j] = 0;
-            if (j == 0) f_down[j] = entering;
-            else {
+            if (!(x[j] > 0)) continue;
+            Real from_above, from_below = 0;
+            if (j == 0) {
+                from_above = entering + top.reflectance(-x[0]) * f_up[0];
+            } else {
                 const SmoothDielectric<Real>& joint = beam_->joints[j - 1];
-                f_down[j] = joint.transmittance(x[j - 1]) * f_down[j - 1] * e[j - 1];
+                from_above = joint.transmittance(x[j - 1]) * f_down[j - 1] + joint.reflectance(-x[j]) * f_up[j];
             }
+            if (j + 1 == count) {
+                if (beam_->floor < 0) from_below = bottom_.smooth_interface().reflectance(x[j]) * f_down[j];
+            } else {
+                const SmoothDielectric<Real>& joint = beam_->joints[j];
+                from_below = (x[j + 1] > 0 ? joint.transmittance(-x[j + 1]) * f_up[j + 1] : Real(0)) +
+                             (x[j + 1] > 0 ? joint.reflectance(x[j]) : Real(1)) * f_down[j];
+            }
+            p[2 * j] = from_above;
+            p[2 * j + 1] = from_below;
         }
+        for (std::size_t j = 0; j < count; ++j) f_down[j] = p[2 * j], f_up[j] = p[2 * j + 1];
         return true;
     }
 
