@@ -26,11 +26,7 @@ namespace {
 
 const double pi = 3.14159265358979323846;
 
-// The unit vector of cosine mu (its sign: the hemisphere) at azimuth phi.
-Vec3<double> direction(double mu, double phi) {
-    const double s = std::sqrt((1 - mu) * (1 + mu));
-    return {s * std::cos(phi), s * std::sin(phi), mu};
-}
+Vec3<double> direction(double mu, double phi) { return stratum_test::direction_at(mu, phi); }
 
 struct Problem {
     double g, albedo, tau, mu0;

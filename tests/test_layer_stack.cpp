@@ -10,6 +10,8 @@
 #include <cmath>
 #include <vector>
 
+#include "test_util.hpp"
+
 #include "reference/mc_stack.hpp"
 
 using stratum::Boundary;
@@ -23,10 +25,7 @@ namespace {
 
 const double pi = 3.14159265358979323846;
 
-Vec3<double> direction(double mu, double phi) {
-    const double s = std::sqrt((1 - mu) * (1 + mu));
-    return {s * std::cos(phi), s * std::sin(phi), mu};
-}
+Vec3<double> direction(double mu, double phi) { return stratum_test::direction_at(mu, phi); }
 
 // air | eta[0] | eta[1] | ... | air, one slab per index.
 LayeredSurface<double> stack(const std::vector<double>& eta, const std::vector<Slab<double>>& slabs, int m,

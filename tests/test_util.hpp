@@ -26,6 +26,12 @@ inline stratum::Vec3<double> random_direction(std::mt19937_64& rng) {
     return {s * std::cos(phi), s * std::sin(phi), z};
 }
 
+/// The unit vector of cosine mu (its sign: the hemisphere) at azimuth phi (own formula, as above).
+inline stratum::Vec3<double> direction_at(double mu, double phi) {
+    const double s = std::sqrt((1 - mu) * (1 + mu));
+    return {s * std::cos(phi), s * std::sin(phi), mu};
+}
+
 /// Unpolarized Fresnel reflectance of a dielectric for cos(incidence) c and relative index n (Born & Wolf),
 /// written out here so that tests do not share code with fresnel.hpp; g - c = (n - 1)(n + 1) / (g + c) keeps
 /// the relative accuracy for n near 1. Total internal reflection (n^2 - 1 + c^2 < 0) gives 1.
