@@ -224,7 +224,8 @@ TEST_CASE("hard incidences: on an ordinate, at the pole, at grazing, at the crit
                                    SmoothDielectric<double>(1.33, 1.0), o);
     const Vec3<double> wo = direction(0.6, 2.0), wt = direction(-0.4, 0.5);
     // Values at mu and at a neighbour at relative distance h differ by O(h) (by O(sqrt(h)) at the pole, where the
-    // modes k > 0 vanish as sin^k); near grazing the BRDF and BTDF are proportional to mu (T_12 is).
+    // modes k > 0 vanish as sin^k); near grazing the BRDF and BTDF are proportional to mu (T_12 is). Bounds 1e-6
+    // (was 1e-5).
     auto close = [&](double mu, double nearby, double ratio, double tolerance) {
         const Vec3<double> a = direction(mu, 0.0), b = direction(nearby, 0.0);
         const double fa = layer.subsurface_brdf(a, wo), fb = layer.subsurface_brdf(b, wo) * ratio;
@@ -238,10 +239,12 @@ TEST_CASE("hard incidences: on an ordinate, at the pole, at grazing, at the crit
     // the refracted beam exactly on an ordinate (where the weakly scattering modes have lambda ~ 1/mu_m)
     for (const double node : layer.quadrature().nodes) {
         const double mu = std::sqrt(1 - 1.33 * 1.33 * (1 - node * node));  // Snell, outside
-        if (mu > 0 && mu <= 1) close(mu, mu * (1 - 1e-7), 1, 1e-5);
+        // (near the pole the modes k > 0 scale as sin(theta): a relative step h moves them by ~h / sin; measured
+        // 1.7e-6 at mu = 0.998, h = 1e-7)
+        if (mu > 0 && mu <= 1) close(mu, mu * (1 - 1e-7), 1, std::fmax(1e-6, 2e-7 / std::sqrt((1 - mu) * (1 + mu))));
     }
-    close(1.0, 1 - 1e-13, 1, 1e-5);  // the pole
-    close(1e-9, 2e-9, 0.5, 1e-5);    // grazing: the refracted beam at the critical cosine
+    close(1.0, 1 - 1e-13, 1, 1e-6);  // the pole
+    close(1e-9, 2e-9, 0.5, 1e-6);    // grazing: the refracted beam at the critical cosine
     CHECK(layer.subsurface_brdf(direction(1e-300, 0.0), wo) >= 0);
 }
 

@@ -1352,7 +1352,7 @@ private:
                     f.u[(k * count + j) * m + n] = ws.rhs(2 * m * j + n, 0) / c;
                     f.v[(k * count + j) * m + n] = ws.rhs(2 * m * j + m + n, 0) / c;
                 }
-            entering(k, f, floor_beam);
+            entering(k, f);
         }
         if (beam_->floor > 0 && kk > 0) {  // the floor's radiance: albedo / pi times the flux reaching it
             Real flux = floor_flux;
@@ -1365,9 +1365,8 @@ private:
 
     // Mode k of what enters each slab at the ordinates (d from above, w from below; unscaled), from what leaves them
     // (add_beam_mode's connections). Over a floor, w of the last slab is set from its radiance by the caller (mode 0).
-    void entering(std::size_t k, detail::BeamField<Real>& f, Real floor_beam) const {
+    void entering(std::size_t k, detail::BeamField<Real>& f) const {
         const std::size_t m = q_.size(), count = beam_->slabs.size();
-        (void)floor_beam;
         for (std::size_t j = 0; j < count; ++j) {
             Real* d = f.d.data() + (k * count + j) * m;
             Real* w = f.w.data() + (k * count + j) * m;

@@ -200,6 +200,7 @@ struct BeamResponse {
     struct Point {
         Real x = 0, weight = 0;
         std::vector<Real> zp, zm, e;  // e: per mode, e^{-tau/x} (the same for every mode; kept per point)
+        std::vector<Real> same, opposite;  // the phase rows at x (only beside a resonance; else the response's)
     };
     Real x = 0;
     int modes = 0;
@@ -277,15 +278,16 @@ public:
             out.point[0].weight = (x2 - x) / (x2 - x1);
             out.point[1].weight = (x - x1) / (x2 - x1);
         }
-        std::vector<Real> same(kk * m_size), opposite(kk * m_size);
         for (int p = 0; p < out.points; ++p) {
             typename BeamResponse<Real>::Point& pt = out.point[p];
             const Real* ps = out.same.data();
             const Real* po = out.opposite.data();
-            if (out.points == 2) {
-                phase_.at(pt.x, same.data(), opposite.data(), modes, scratch);
-                ps = same.data();
-                po = opposite.data();
+            if (out.points == 2) {  // (beside a resonance: the phase rows at the evaluation point itself)
+                pt.same.resize(kk * m_size);
+                pt.opposite.resize(kk * m_size);
+                phase_.at(pt.x, pt.same.data(), pt.opposite.data(), modes, scratch);
+                ps = pt.same.data();
+                po = pt.opposite.data();
             }
             pt.zp.assign(kk * m_size, Real(0));
             pt.zm.assign(kk * m_size, Real(0));
@@ -312,7 +314,6 @@ public:
             const Real e = pt.e[static_cast<std::size_t>(k)], x = pt.x, a = 1 / x;
             const Real beta = delta / (two_pi * x);
             Real sigma_up = beta * phase_.between(-x, y, k), sigma_down = beta * phase_.between(x, y, k);
-            Real row_r = 0, row_t = 0;  // row(y) . (-Z-) and row(y) . (-Z+ e) for R and T
             Real hom_up = 0, hom_down = 0;
             for (std::size_t m = 0; m < m_size; ++m) {
                 const Real ps = at_y.same[off + m], po = at_y.opposite[off + m];
@@ -323,8 +324,6 @@ public:
                 hom_up -= rr * zm[m] + tt * zp[m] * e;
                 hom_down -= tt * zm[m] + rr * zp[m] * e;
             }
-            (void)row_r;
-            (void)row_t;
             sigma_up *= md.omega_k;
             sigma_down *= md.omega_k;
             const Real up_path = std::isinf(tau_) ? Real(1) / ((a + b) * y) : -std::expm1(-(a + b) * tau_) / ((a + b) * y);
