@@ -80,4 +80,31 @@ void BM_adding_add(benchmark::State& state) {
 }
 BENCHMARK(BM_adding_add)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Arg(64)->Unit(benchmark::kMicrosecond);
 
+// The dense kernels under every mode: C = A B and A X = B with M right-hand sides (LU factors prepared), n x n.
+stratum::detail::Matrix<double> random_matrix(std::size_t n, unsigned seed) {
+    stratum::detail::Matrix<double> a(n, n);
+    for (std::size_t i = 0; i < n * n; ++i) a.data[i] = std::sin(1.0 + seed + 0.7 * static_cast<double>(i));
+    for (std::size_t i = 0; i < n; ++i) a(i, i) += static_cast<double>(n);
+    return a;
+}
+
+void BM_multiply(benchmark::State& state) {
+    const auto n = static_cast<std::size_t>(state.range(0));
+    const auto a = random_matrix(n, 1), b = random_matrix(n, 2);
+    for (auto _ : state) benchmark::DoNotOptimize(stratum::detail::multiply(a, b).data.data());
+}
+BENCHMARK(BM_multiply)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Arg(64);
+
+void BM_lu_solve(benchmark::State& state) {
+    const auto n = static_cast<std::size_t>(state.range(0));
+    const auto lu = stratum::detail::lu_factor(random_matrix(n, 1));
+    const auto b = random_matrix(n, 2);
+    for (auto _ : state) {
+        auto x = b;
+        stratum::detail::lu_solve(lu, x);
+        benchmark::DoNotOptimize(x.data.data());
+    }
+}
+BENCHMARK(BM_lu_solve)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Arg(64);
+
 }  // namespace

@@ -207,6 +207,60 @@ TEST_CASE("LU with partial pivoting solves to the backward-error level and needs
     CHECK(x(1, 0) == 2.0);
 }
 
+TEST_CASE("blocked products and many-column solves agree with plain loops on shapes off the blocks") {
+    // multiply accumulates 4 x 8 blocks and lu_solve 8 columns at a time, with plain loops at the edges: every
+    // shape below mixes both. Reference: the same sums in long double; bound: inner * eps * sum |a| |b| per entry.
+    Random rng(29);
+    const std::size_t sizes[] = {1, 3, 4, 5, 8, 9, 13, 24, 33};
+    for (std::size_t rows : sizes)
+        for (std::size_t inner : sizes)
+            for (std::size_t cols : sizes) {
+                Matrix<double> a(rows, inner), b(inner, cols);
+                for (double& v : a.data) v = rng();
+                for (double& v : b.data) v = rng();
+                const Matrix<double> c = stratum::detail::multiply(a, b);
+                REQUIRE(c.rows == rows);
+                REQUIRE(c.cols == cols);
+                double worst = 0;
+                for (std::size_t i = 0; i < rows; ++i)
+                    for (std::size_t j = 0; j < cols; ++j) {
+                        long double exact = 0, scale = 0;
+                        for (std::size_t k = 0; k < inner; ++k) {
+                            exact += static_cast<long double>(a(i, k)) * b(k, j);
+                            scale += std::fabs(static_cast<long double>(a(i, k)) * b(k, j));
+                        }
+                        worst = std::fmax(worst, static_cast<double>(std::fabs(c(i, j) - exact) / scale));
+                    }
+                CHECK(worst <= static_cast<double>(inner) * std::numeric_limits<double>::epsilon());
+            }
+    for (std::size_t n : {1u, 7u, 24u, 41u})
+        for (std::size_t cols : {1u, 8u, 19u}) {
+            Matrix<double> a(n, n), x(n, cols);
+            for (double& v : a.data) v = rng();
+            for (double& v : x.data) v = rng();
+            const Matrix<double> b = stratum::detail::multiply(a, x);
+            const Matrix<double> r = stratum::detail::multiply(a, stratum::detail::solve(a, b));
+            double worst = 0;
+            for (std::size_t i = 0; i < b.data.size(); ++i) worst = std::fmax(worst, std::fabs(r.data[i] - b.data[i]));
+            const double dn = static_cast<double>(n);
+            CHECK(worst <= 16.0 * dn * dn * std::numeric_limits<double>::epsilon() * max_abs(a) * max_abs(x) * dn);
+        }
+}
+
+TEST_CASE("the plane rotations' radius is hypot to an ulp, also where the squares overflow or underflow") {
+    Random rng(31);
+    for (int i = 0; i < 1000; ++i) {
+        const double f = rng() * std::pow(10.0, 300 * rng()), g = rng() * std::pow(10.0, 300 * rng());
+        const double r = stratum::detail::rotation_radius(f, g), h = std::hypot(f, g);
+        CHECK(std::isfinite(r));
+        CHECK(std::fabs(r - h) <= 2 * std::numeric_limits<double>::epsilon() * h);
+    }
+    CHECK(stratum::detail::rotation_radius(0.0, 0.0) == 0.0);
+    CHECK(stratum::detail::rotation_radius(1e200, 1e200) == std::hypot(1e200, 1e200));
+    CHECK(stratum::detail::rotation_radius(3e-200, 4e-200) == std::hypot(3e-200, 4e-200));
+    CHECK(stratum::detail::rotation_radius(3.0f, 4.0f) == 5.0f);
+}
+
 TEST_CASE("LU of an exactly singular matrix reports it and stays finite") {
     Matrix<double> a(3, 3);
     for (std::size_t i = 0; i < 3; ++i)
