@@ -60,36 +60,52 @@ Matrix<Real> one_minus_product(const Matrix<Real>& a, const Matrix<Real>& b) {
 
 }  // namespace detail
 
+namespace detail {
+
+/// The half of the adding for light from above (out.reflection_down, out.transmission_down); x receives
+/// (I - R1u R2d)^{-1} T1d, the down-going light between the components per unit coming in.
+template <class Real>
+void add_from_above(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom, Matrix<Real>& x,
+                    ComponentOperators<Real>& out) {
+    const std::size_t n = top.size;
+    x = as_matrix(n, top.transmission_down);
+    const Matrix<Real> r2d = as_matrix(n, bottom.reflection_down);
+    lu_solve(lu_factor(one_minus_product(as_matrix(n, top.reflection_up), r2d)), x);
+    Matrix<Real> rd = multiply(as_matrix(n, top.transmission_up), multiply(r2d, x));
+    const Matrix<Real> r1d = as_matrix(n, top.reflection_down);
+    for (std::size_t i = 0; i < n * n; ++i) rd.data[i] += r1d.data[i];
+    out.size = n;
+    out.reflection_down = std::move(rd.data);
+    out.transmission_down = multiply(as_matrix(n, bottom.transmission_down), x).data;
+}
+
+/// The half of the adding for light from below (out.reflection_up, out.transmission_up).
+template <class Real>
+void add_from_below(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom,
+                    ComponentOperators<Real>& out) {
+    const std::size_t n = top.size;
+    Matrix<Real> y = as_matrix(n, bottom.transmission_up);  // (I - R2d R1u)^{-1} T2u
+    const Matrix<Real> r1u = as_matrix(n, top.reflection_up);
+    lu_solve(lu_factor(one_minus_product(as_matrix(n, bottom.reflection_down), r1u)), y);
+    Matrix<Real> ru = multiply(as_matrix(n, bottom.transmission_down), multiply(r1u, y));
+    const Matrix<Real> r2u = as_matrix(n, bottom.reflection_up);
+    for (std::size_t i = 0; i < n * n; ++i) ru.data[i] += r2u.data[i];
+    out.size = n;
+    out.reflection_up = std::move(ru.data);
+    out.transmission_up = multiply(as_matrix(n, top.transmission_up), y).data;
+}
+
+}  // namespace detail
+
 /// The operators of `top` stacked on `bottom` (same size). ~ 14 M^3 flops.
 /// Throws std::invalid_argument if the sizes differ.
 template <class Real>
 ComponentOperators<Real> add_components(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom) {
     if (top.size != bottom.size) detail::fail_invalid_argument("stratum: adding components of different sizes");
-    const std::size_t n = top.size;
-    using detail::Matrix;
-    const Matrix<Real> r1d = detail::as_matrix(n, top.reflection_down), t1d = detail::as_matrix(n, top.transmission_down);
-    const Matrix<Real> r1u = detail::as_matrix(n, top.reflection_up), t1u = detail::as_matrix(n, top.transmission_up);
-    const Matrix<Real> r2d = detail::as_matrix(n, bottom.reflection_down), t2d = detail::as_matrix(n, bottom.transmission_down);
-    const Matrix<Real> r2u = detail::as_matrix(n, bottom.reflection_up), t2u = detail::as_matrix(n, bottom.transmission_up);
-
     ComponentOperators<Real> out;
-    out.size = n;
-    {   // from above: X = (I - R1u R2d)^{-1} T1d
-        Matrix<Real> x = t1d;
-        detail::lu_solve(detail::lu_factor(detail::one_minus_product(r1u, r2d)), x);
-        Matrix<Real> rd = detail::multiply(t1u, detail::multiply(r2d, x));
-        for (std::size_t i = 0; i < n * n; ++i) rd.data[i] += r1d.data[i];
-        out.reflection_down = std::move(rd.data);
-        out.transmission_down = detail::multiply(t2d, x).data;
-    }
-    {   // from below: Y = (I - R2d R1u)^{-1} T2u
-        Matrix<Real> y = t2u;
-        detail::lu_solve(detail::lu_factor(detail::one_minus_product(r2d, r1u)), y);
-        Matrix<Real> ru = detail::multiply(t2d, detail::multiply(r1u, y));
-        for (std::size_t i = 0; i < n * n; ++i) ru.data[i] += r2u.data[i];
-        out.reflection_up = std::move(ru.data);
-        out.transmission_up = detail::multiply(t1u, y).data;
-    }
+    detail::Matrix<Real> x;
+    detail::add_from_above(top, bottom, x, out);
+    detail::add_from_below(top, bottom, out);
     return out;
 }
 

@@ -661,14 +661,17 @@ template <class Real>
 struct StackMode {
     ComponentOperators<Real> middle;  // the slabs and the interior faces
     ComponentOperators<Real> bottom;  // the bottom face
-    ComponentOperators<Real> lower;   // middle + bottom: S = lower.reflection_down
+    ComponentOperators<Real> lower;   // middle + bottom: S = lower.reflection_down (the upward half only if asked)
+    Matrix<Real> x;                   // (I - R_mid,up R_23)^{-1} T_mid,down: down-going light above the bottom face
     Real slab_size = 0;               // the largest diffuse_size of the slabs (the mode cutoff between specular faces)
 };
 
-// solved: where not null, every slab's mode as solved (with its eigen-solution) is kept there.
+// solved: where not null, every slab's mode as solved (with its eigen-solution) is kept there; upward: whether the
+// lower part's operators for light from below are needed (the whole layer's operators).
 template <class Real>
 StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOperators<Real>& bottom,
-                           const Quadrature<Real>& q, int k, std::vector<SlabModeSolution<Real>>* solved = nullptr) {
+                           const Quadrature<Real>& q, int k, std::vector<SlabModeSolution<Real>>* solved = nullptr,
+                           bool upward = false) {
     auto slab = [&](std::size_t i) {
         const SlabModes<Real>& p = stack.slabs[i];
         if (!solved) return slab_mode(p, q, k);
@@ -685,7 +688,8 @@ StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOper
         s.middle = add_components(s.middle, next);
     }
     s.bottom = interface_component(bottom, k);
-    s.lower = add_components(s.middle, s.bottom);
+    add_from_above(s.middle, s.bottom, s.x, s.lower);
+    if (upward) add_from_below(s.middle, s.bottom, s.lower);
     return s;
 }
 
@@ -1889,7 +1893,8 @@ void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack,
                                                                       q_.nodes, tau));
             }
         } else {
-            below = detail::stack_mode(stack, *bottom_ops_, q_, k, beam_ ? &solved : nullptr);
+            below = detail::stack_mode(stack, *bottom_ops_, q_, k, beam_ ? &solved : nullptr,
+                                       includes(outputs_, LayerOutput::operators));
             slab_size = below->slab_size;
         }
         // An aliased phase function (regularized operators: slab.hpp) does not scatter the beam as it scatters the
@@ -1910,11 +1915,7 @@ void LayeredSurface<Real>::solve_modes(const detail::PreparedStack<Real>& stack,
             }
         }
         if (beam_) add_beam_mode(k, std::move(solved), stack);
-        if (below) {
-            add_field_operators(k, *below);
-            if (includes(outputs_, LayerOutput::operators))
-                whole_.push_back(add_components(detail::interface_component(*top_ops_, k), below->lower));
-        }
+        if (below) add_field_operators(k, *below);
         modes_ = k + 1;
         if (!(tolerance > 0)) continue;
         const Real size = stack.any_rough ? coefficient_size(k, below->bottom) : slab_size;
@@ -2046,23 +2047,43 @@ void LayeredSurface<Real>::add_beam_mode(int k, std::vector<detail::SlabModeSolu
 
 // Q_b and Q_e of mode k: with S the reflection of everything below the top face and
 // A = (I - R_21 S)^{-1} (the down-going field just below the top per unit transmitted coefficient),
-//     Q_b = S A,    Q_e = (I - R_mid,up R_23)^{-1} T_mid,down A   (only when transmission is requested),
-// R_mid,up and T_mid,down those of the slabs and interior faces, R_23 the bottom's.
+//     Q_b = S A,    Q_e = (I - R_mid,up R_23)^{-1} T_mid,down A = X A   (only when transmission is requested),
+// R_mid,up and T_mid,down those of the slabs and interior faces, R_23 the bottom's, X kept by the adding of the
+// lower part (detail::StackMode). When requested, the whole layer's operators, the top face added to the lower
+// part L through A (adding.hpp's equations, (I - S R_21)^{-1} = I + Q_b R_21 by the push-through identity):
+//     R_d = R_12 + T_21 Q_b T_12,   T_d = T_L,d A T_12,
+//     R_u = R_L,u + T_L,d R_21 Y,   T_u = T_21 Y,   Y = (I + Q_b R_21) T_L,u.
 template <class Real>
 void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Real>& below) {
     using detail::Matrix;
+    using detail::multiply;
     const std::size_t m = q_.size();
     const Matrix<Real> S = detail::as_matrix(m, below.lower.reflection_down);
     const Matrix<Real> r21 = detail::mode_matrix(top_ops_->R21(), k);
     Matrix<Real> a = Matrix<Real>::identity(m);
     detail::lu_solve(detail::lu_factor(detail::one_minus_product(r21, S)), a);
-    qb_.push_back(detail::multiply(S, a));
-    if (!detail::needs_transmitted(outputs_)) return;
-    const Matrix<Real> r_mid_up = detail::as_matrix(m, below.middle.reflection_up);
-    const Matrix<Real> r23 = detail::as_matrix(m, below.bottom.reflection_down);
-    Matrix<Real> x = detail::multiply(detail::as_matrix(m, below.middle.transmission_down), a);
-    detail::lu_solve(detail::lu_factor(detail::one_minus_product(r_mid_up, r23)), x);
-    qe_.push_back(std::move(x));
+    qb_.push_back(multiply(S, a));
+    if (detail::needs_transmitted(outputs_)) qe_.push_back(multiply(below.x, a));
+    if (!includes(outputs_, LayerOutput::operators)) return;
+    const Matrix<Real> t12 = detail::mode_matrix(top_ops_->T12(), k), t21 = detail::mode_matrix(top_ops_->T21(), k);
+    const Matrix<Real>& qb = qb_.back();
+    const Matrix<Real> lower_td = detail::as_matrix(m, below.lower.transmission_down);
+    ComponentOperators<Real> w;
+    w.size = m;
+    Matrix<Real> rd = multiply(t21, multiply(qb, t12));
+    const Real* r12 = top_ops_->R12().mode(k);
+    for (std::size_t i = 0; i < m * m; ++i) rd.data[i] += r12[i];
+    w.reflection_down = std::move(rd.data);
+    w.transmission_down = multiply(lower_td, multiply(a, t12)).data;
+    Matrix<Real> y = detail::as_matrix(m, below.lower.transmission_up);
+    const Matrix<Real> bounce = multiply(qb, multiply(r21, y));
+    for (std::size_t i = 0; i < m * m; ++i) y.data[i] += bounce.data[i];
+    Matrix<Real> ru = multiply(lower_td, multiply(r21, y));
+    const Matrix<Real> lower_ru = detail::as_matrix(m, below.lower.reflection_up);
+    for (std::size_t i = 0; i < m * m; ++i) ru.data[i] += lower_ru.data[i];
+    w.reflection_up = std::move(ru.data);
+    w.transmission_up = multiply(t21, y).data;
+    whole_.push_back(std::move(w));
 }
 
 // The size of mode k for the adaptive mode count: the largest BRDF/BTDF Fourier coefficient it adds at the
