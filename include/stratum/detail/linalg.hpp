@@ -39,15 +39,25 @@ struct Matrix {
     }
 };
 
+/// Whether fewer than half of the entries are nonzero: then the products and solves below skip the zeros (the
+/// operators of smooth faces are diagonal, and a mode that does not scatter has R = 0 and a diagonal T).
+template <class Real>
+bool mostly_zero(const Matrix<Real>& a) noexcept {
+    std::size_t nonzero = 0;
+    for (const Real x : a.data) nonzero += x != Real(0);
+    return 2 * nonzero < a.data.size();
+}
+
 /// C = A B. Blocks of 4 rows by 8 columns of C are accumulated in registers over the whole inner dimension (a
 /// row of B's block is loaded once per 4 multiply-adds instead of C being loaded and stored per multiply-add: 1.8x
-/// the plain i-k-j loop at n = 24, bench/bench_slab.cpp BM_multiply); the edges take the plain loop.
+/// the plain i-k-j loop at n = 24, bench/bench_slab.cpp BM_multiply); the edges, and an A that is mostly zero,
+/// take the plain loop, which skips A's zeros.
 template <class Real>
 Matrix<Real> multiply(const Matrix<Real>& a, const Matrix<Real>& b) {
     constexpr std::size_t block_rows = 4, block_cols = 8;
     const std::size_t n = a.rows, inner = a.cols, cols = b.cols;
     Matrix<Real> c(n, cols);
-    const std::size_t full_rows = n - n % block_rows, full_cols = cols - cols % block_cols;
+    const std::size_t full_rows = mostly_zero(a) ? 0 : n - n % block_rows, full_cols = cols - cols % block_cols;
     for (std::size_t i = 0; i < full_rows; i += block_rows) {
         for (std::size_t j = 0; j < full_cols; j += block_cols) {
             Real acc[block_rows][block_cols] = {};
@@ -65,9 +75,10 @@ Matrix<Real> multiply(const Matrix<Real>& a, const Matrix<Real>& b) {
             for (std::size_t k = 0; k < inner; ++k)
                 for (std::size_t j = full_cols; j < cols; ++j) c(r, j) += a(r, k) * b(k, j);
     }
-    for (std::size_t i = full_rows; i < n; ++i)  // the last rows
+    for (std::size_t i = full_rows; i < n; ++i)  // the last rows (all of them where A is mostly zero)
         for (std::size_t k = 0; k < inner; ++k) {
             const Real aik = a(i, k);
+            if (aik == Real(0)) continue;
             const Real* bk = b.row(k);
             Real* ci = c.row(i);
             for (std::size_t j = 0; j < cols; ++j) ci[j] += aik * bk[j];
@@ -157,16 +168,41 @@ void lu_substitute(const Matrix<Real>& f, Matrix<Real>& b, std::size_t j0) noexc
     }
 }
 
-/// Solves A X = B in place (B: n x nrhs, row-major) with the factors of A.
+/// Solves A X = B in place (B: n x nrhs, row-major) with the factors of A. Factors that are mostly zero (a
+/// diagonal system) are applied row by row, skipping their zeros.
 template <class Real>
 void lu_solve(const LU<Real>& lu, Matrix<Real>& b) {
     constexpr std::size_t width = 8;
-    const std::size_t n = lu.factors.rows, m = b.cols;
+    const Matrix<Real>& f = lu.factors;
+    const std::size_t n = f.rows, m = b.cols;
     for (std::size_t k = 0; k < n; ++k)
         if (lu.pivot[k] != k) std::swap_ranges(b.row(k), b.row(k) + m, b.row(lu.pivot[k]));
-    std::size_t j = 0;
-    for (; j + width <= m; j += width) lu_substitute<width>(lu.factors, b, j);
-    for (; j < m; ++j) lu_substitute<1>(lu.factors, b, j);
+    if (!mostly_zero(f)) {
+        std::size_t j = 0;
+        for (; j + width <= m; j += width) lu_substitute<width>(f, b, j);
+        for (; j < m; ++j) lu_substitute<1>(f, b, j);
+        return;
+    }
+    for (std::size_t i = 1; i < n; ++i) {  // forward: unit lower L
+        Real* bi = b.row(i);
+        for (std::size_t k = 0; k < i; ++k) {
+            const Real lik = f(i, k);
+            if (lik == Real(0)) continue;
+            const Real* bk = b.row(k);
+            for (std::size_t j = 0; j < m; ++j) bi[j] -= lik * bk[j];
+        }
+    }
+    for (std::size_t ii = n; ii-- > 0;) {  // backward: U
+        Real* bi = b.row(ii);
+        for (std::size_t k = ii + 1; k < n; ++k) {
+            const Real uik = f(ii, k);
+            if (uik == Real(0)) continue;
+            const Real* bk = b.row(k);
+            for (std::size_t j = 0; j < m; ++j) bi[j] -= uik * bk[j];
+        }
+        const Real inv = Real(1) / f(ii, ii);
+        for (std::size_t j = 0; j < m; ++j) bi[j] *= inv;
+    }
 }
 
 /// X = A^{-1} B.
