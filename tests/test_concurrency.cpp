@@ -155,3 +155,29 @@ TEST_CASE("threads solving and evaluating layers from one pair of PreparedBounda
     });
     for (const auto& r : results) CHECK(same_bits(r, reference));
 }
+
+TEST_CASE("the layer's shared Gauss rules are computed once, from several threads at once, and equal the fresh rules") {
+    // detail::shared_gauss_legendre_half caches gauss_legendre_half(n) for n <= 256 (std::call_once per n): threads
+    // asking for the same rules at the same time must all get the fresh rule, bit for bit (and 257, past the
+    // cache, too).
+    std::vector<std::vector<double>> fresh;
+    for (int n = 1; n <= 257; n += 16) {
+        const auto q = stratum::gauss_legendre_half<double>(n);
+        std::vector<double> v(q.nodes);
+        v.insert(v.end(), q.weights.begin(), q.weights.end());
+        fresh.push_back(v);
+    }
+    std::atomic<int> mismatches{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < thread_count; ++t)
+        threads.emplace_back([&] {
+            for (int n = 1, i = 0; n <= 257; n += 16, ++i) {
+                const auto q = stratum::detail::shared_gauss_legendre_half<double>(n);
+                std::vector<double> v(q.nodes);
+                v.insert(v.end(), q.weights.begin(), q.weights.end());
+                if (!same_bits(v, fresh[static_cast<std::size_t>(i)])) ++mismatches;
+            }
+        });
+    for (auto& th : threads) th.join();
+    CHECK(mismatches.load() == 0);
+}

@@ -315,6 +315,7 @@ PhaseFourierMatrices<Real> phase_fourier_matrices(const std::vector<Real>& chi, 
     // would be one long dependency chain).
     std::vector<Real> table, weight, even(Ms), odd(Ms);
     std::vector<detail::SectoralSeed<Real>> seeds;  // per ordinate, advanced one order per mode
+    seeds.reserve(Ms);
     for (std::size_t m = 0; m < Ms; ++m) seeds.emplace_back(mu[m]);
     std::vector<detail::LambdaStepper<Real>> steppers;
     steppers.reserve(Ms);

@@ -574,8 +574,11 @@ public:
     /// Relative index eta_t / eta_i for light arriving with cosine mu_i.
     STRATUM_HOST_DEVICE Real relative_eta(Real mu_i) const noexcept { return mu_i >= 0 ? eta_below_ / eta_above_ : eta_above_ / eta_below_; }
 
-    /// Fresnel reflectance F(|mu_i|, eta_t / eta_i); 1 under total internal reflection.
-    STRATUM_HOST_DEVICE Real reflectance(Real mu_i) const noexcept { return fresnel_dielectric(std::fabs(mu_i), relative_eta(mu_i)); }
+    /// Fresnel reflectance F(|mu_i|, eta_t / eta_i); 1 under total internal reflection; 0 (exactly, as F) when
+    /// the indices match, without computing F (the layer solver asks at every ordinate of index-matched faces).
+    STRATUM_HOST_DEVICE Real reflectance(Real mu_i) const noexcept {
+        return eta_above_ == eta_below_ ? Real(0) : fresnel_dielectric(std::fabs(mu_i), relative_eta(mu_i));
+    }
 
     /// Transmitted power fraction 1 - F.
     STRATUM_HOST_DEVICE Real transmittance(Real mu_i) const noexcept { return 1 - reflectance(mu_i); }

@@ -1713,6 +1713,19 @@ LayeredSurface<Real> solve_stack(const detail::non_deduced_t<Boundary<Real>>& to
 
 namespace detail {
 
+/// gauss_legendre_half(n) computed once per n (n <= 256) and copied from then on: each rule costs about 1 us at
+/// n = 8 (its nodes to an ulp, by Newton's method), 10% of a flux solve at M = 8. Thread-safe.
+template <class Real>
+Quadrature<Real> shared_gauss_legendre_half(int n) {
+    constexpr int cached = 256;
+    if (n < 1 || n > cached) return gauss_legendre_half<Real>(n);
+    static std::once_flag once[cached + 1];
+    static Quadrature<Real> rules[cached + 1];
+    const auto i = static_cast<std::size_t>(n);
+    std::call_once(once[i], [i, n] { rules[i] = gauss_legendre_half<Real>(n); });
+    return rules[i];
+}
+
 /// The layer's ordinates: the half-range Gauss rule of M points, or, for one slab (or slabs joined by index-matched
 /// faces) under a specular top and over a specular face or a Lambertian floor, with critical cosines inside
 /// (LayerOptions::critical_split), Gauss rules on the panels between them: the panels below the larger critical
@@ -1724,7 +1737,7 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     const int m = options.ordinates;
     bool eligible = options.critical_split && !top.rough() && !top.lambertian() && !bottom.rough();
     for (const Boundary<Real>& b : interior) eligible = eligible && !b.rough() && b.eta_above() == b.eta_below();
-    if (!eligible) return gauss_legendre_half<Real>(m);
+    if (!eligible) return shared_gauss_legendre_half<Real>(m);
     std::vector<Real> cuts;  // critical cosines inside the slab: sqrt(1 - (n_out / n_in)^2) where n_out < n_in
     std::vector<Real> ratios{top.eta_above() / top.eta_below()};
     if (!bottom.lambertian()) ratios.push_back(bottom.eta_below() / bottom.eta_above());
@@ -1733,7 +1746,7 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     std::sort(cuts.begin(), cuts.end());
     cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
     const int panels = static_cast<int>(cuts.size()) + 1;
-    if (panels == 1 || m < panels) return gauss_legendre_half<Real>(m);
+    if (panels == 1 || m < panels) return shared_gauss_legendre_half<Real>(m);
     std::vector<Real> edges{Real(0)};
     edges.insert(edges.end(), cuts.begin(), cuts.end());
     edges.push_back(Real(1));
@@ -1741,11 +1754,11 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     // few when it is narrow (nearly matched indices), where the escape cone needs them.
     const int below = std::max(panels - 1, std::min(m / 2, static_cast<int>(std::ceil(Real(m) * cuts.back()))));
     const int top_points = m - below;
-    if (top_points < 1) return gauss_legendre_half<Real>(m);
+    if (top_points < 1) return shared_gauss_legendre_half<Real>(m);
     Quadrature<Real> q;
     for (int p = 0; p < panels; ++p) {
         const int points = p == panels - 1 ? top_points : below / (panels - 1) + (p < below % (panels - 1) ? 1 : 0);
-        const Quadrature<Real> g = gauss_legendre_half<Real>(points);
+        const Quadrature<Real> g = shared_gauss_legendre_half<Real>(points);
         const Real a = edges[static_cast<std::size_t>(p)], width = edges[static_cast<std::size_t>(p + 1)] - a;
         // Above a critical cosine F ~ 1 - c sqrt(mu - mu_c): the panel is ruled in s with mu = a + width s^2 (3 - 2s)
         // (dmu = 6 width s (1 - s) ds), in which that is smooth near s = 0, and which also gathers points towards the

@@ -76,6 +76,7 @@ public:
         table_.resize(static_cast<std::size_t>(top + 1));
         coef_.resize(static_cast<std::size_t>(top + 1));
         std::vector<SectoralSeed<Real>> seeds;
+        seeds.reserve(mu.size());
         for (const Real x : mu) seeds.emplace_back(x);
         for (int k = 0; k <= top; ++k) {
             const auto count = static_cast<std::size_t>(degree_ - k + 1);
