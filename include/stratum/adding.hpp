@@ -79,20 +79,20 @@ void add_from_above(const ComponentOperators<Real>& top, const ComponentOperator
     out.transmission_down = multiply(as_matrix(n, bottom.transmission_down), x).data;
 }
 
-/// The half of the adding for light from below (out.reflection_up, out.transmission_up).
+/// The half of the adding for light from below (out.reflection_up, out.transmission_up): the half from above
+/// for the stack turned over (each component's up and down exchanged, bottom on top).
 template <class Real>
 void add_from_below(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom,
                     ComponentOperators<Real>& out) {
-    const std::size_t n = top.size;
-    Matrix<Real> y = as_matrix(n, bottom.transmission_up);  // (I - R2d R1u)^{-1} T2u
-    const Matrix<Real> r1u = as_matrix(n, top.reflection_up);
-    lu_solve(lu_factor(one_minus_product(as_matrix(n, bottom.reflection_down), r1u)), y);
-    Matrix<Real> ru = multiply(as_matrix(n, bottom.transmission_down), multiply(r1u, y));
-    const Matrix<Real> r2u = as_matrix(n, bottom.reflection_up);
-    for (std::size_t i = 0; i < n * n; ++i) ru.data[i] += r2u.data[i];
-    out.size = n;
-    out.reflection_up = std::move(ru.data);
-    out.transmission_up = multiply(as_matrix(n, top.transmission_up), y).data;
+    auto turned = [](const ComponentOperators<Real>& c) {
+        return ComponentOperators<Real>{c.size, c.reflection_up, c.transmission_up, c.reflection_down, c.transmission_down};
+    };
+    ComponentOperators<Real> half;
+    Matrix<Real> y;
+    add_from_above(turned(bottom), turned(top), y, half);
+    out.size = top.size;
+    out.reflection_up = std::move(half.reflection_down);
+    out.transmission_up = std::move(half.transmission_down);
 }
 
 }  // namespace detail
