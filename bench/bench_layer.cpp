@@ -196,6 +196,23 @@ void BM_layer_smooth_brdf_true_angle(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_smooth_brdf_true_angle)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
+// The same problem's fluxes at its incidence alone (mode 0): stratum's side of bench/disort_compare, which times
+// DISORT (cdisort, built outside this repository) beside it in one run.
+void BM_layer_fluxes_disort_p1(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    stratum::LayerRequest<Real> request;
+    request.incidence = {Real(0.5)};
+    request.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
+    for (auto _ : state) {
+        const auto layer = stratum::solve_layer(stratum::Slab<Real>(Real(0.9), Real(0.75), 1),
+                                                stratum::Boundary<Real>::index_matched(),
+                                                stratum::Boundary<Real>::index_matched(), options, request);
+        benchmark::DoNotOptimize(layer.reflectance(Real(0.5)).subsurface + layer.transmittance(Real(0.5)));
+    }
+}
+BENCHMARK(BM_layer_fluxes_disort_p1)->Arg(2)->Arg(4)->Arg(8)->Arg(16)->Arg(32)->Unit(benchmark::kMicrosecond);
+
 // DISORT's test problem P1 of tests/data/disort_intensity_reference.txt (g 0.75, albedo 0.9, tau 1, mu0 0.5, black
 // faces): the solve and the 56 lit intensities at true angles, with the single-scattering correction; accuracy
 // against converged DISORT in docs/accuracy.md.
