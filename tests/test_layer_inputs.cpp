@@ -617,3 +617,21 @@ TEST_CASE("nearly trapped light between a nearly specular rough top and a smooth
         }
     }
 }
+
+// A second case of the sweep: light from a slightly denser medium (1.37) through a rough top (slope 0.042) into a
+// slab of 1.351 over a smooth bottom to 1.298, whose critical cosine inside is 0.277. At mu = 0.3 the internal
+// cosine is 0.253: trapped by the bottom, but above every ordinate below 0.277 at M = 7 (0.025, 0.129), so the
+// spread extrapolated from those two (weights -1.19 and 2.19) and R + T came out 1.296; at M = 8 and 16 it is 0.94.
+// The nearest ordinate below the cut now takes the beam (measured: 0.877 at M = 7).
+TEST_CASE("a beam just below the other face's critical cosine is not extrapolated onto the ordinates") {
+    for (int m : {5, 6, 7, 8, 16}) {
+        LayerOptions options;
+        options.ordinates = m;
+        const auto layer = solve_layer(Slab<double>(0.335, 0.136, 1.12e-2), RoughDielectric<double>(0.0417, 1.370, 1.351),
+                                       SmoothDielectric<double>(1.351, 1.298), options);
+        for (double mu : {0.05, 0.168, 0.25, 0.3, 0.35, 0.5, 1.0}) {
+            INFO("M = " << m << ", mu = " << mu);
+            CHECK(layer.reflectance(mu).total() + layer.transmittance(mu) <= 1 + 1e-9);
+        }
+    }
+}

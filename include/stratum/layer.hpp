@@ -1111,8 +1111,14 @@ private:
         while (lowest < m - 1 && q_.nodes[static_cast<std::size_t>(lowest)] < low_cut) ++lowest;
         int end = lowest + 1;  // one past its last ordinate
         while (end < m && !(other > x && q_.nodes[static_cast<std::size_t>(end)] >= other)) ++end;
-        Real w[4];
-        const detail::LagrangeWindow window = detail::lagrange_weights(q_.nodes.data(), end, x, p, w, lowest);
+        // Between that cut and the nearest ordinate on x's side, extrapolation would weigh the ordinates beyond 1 and
+        // below 0 (2.19 and -1.19 at 7 ordinates in a sweep, R + T = 1.29): the nearest ordinate takes the beam there.
+        Real w[4] = {Real(1)};
+        detail::LagrangeWindow window{lowest, 1};
+        const bool cut_above = other > x, cut_below = other > 0 && other <= x && other >= face.critical_cosine();
+        if (cut_above && x >= q_.nodes[static_cast<std::size_t>(end - 1)]) window.first = end - 1;
+        else if (!(cut_below && x <= q_.nodes[static_cast<std::size_t>(lowest)]))
+            window = detail::lagrange_weights(q_.nodes.data(), end, x, p, w, lowest);
         ws.in.assign(q_.size(), Real(0));
         for (int a = 0; a < window.points; ++a) ws.in[static_cast<std::size_t>(window.first + a)] = w[a];
     }
