@@ -1111,13 +1111,15 @@ private:
         while (lowest < m - 1 && q_.nodes[static_cast<std::size_t>(lowest)] < low_cut) ++lowest;
         int end = lowest + 1;  // one past its last ordinate
         while (end < m && !(other > x && q_.nodes[static_cast<std::size_t>(end)] >= other)) ++end;
-        // Between that cut and the nearest ordinate on x's side, extrapolation would weigh the ordinates beyond 1 and
-        // below 0 (2.19 and -1.19 at 7 ordinates in a sweep, R + T = 1.29): the nearest ordinate takes the beam there.
+        // Below the range's first ordinate (towards a critical cosine or grazing) and above its last one when a cut
+        // bounds it there, extrapolation would weigh the ordinates beyond 1 and below 0 (2.19 and -1.19 at 7
+        // ordinates in a sweep, R + T = 1.30; 1.85 and -0.85 next to the face's own critical cosine, 1.19): the
+        // nearest ordinate takes the beam there. Towards mu = 1 the stencil still extrapolates (a beam at normal
+        // incidence lies beyond every ordinate; there is nothing to leak into).
         Real w[4] = {Real(1)};
         detail::LagrangeWindow window{lowest, 1};
-        const bool cut_above = other > x, cut_below = other > 0 && other <= x && other >= face.critical_cosine();
-        if (cut_above && x >= q_.nodes[static_cast<std::size_t>(end - 1)]) window.first = end - 1;
-        else if (!(cut_below && x <= q_.nodes[static_cast<std::size_t>(lowest)]))
+        if (other > x && x >= q_.nodes[static_cast<std::size_t>(end - 1)]) window.first = end - 1;
+        else if (x > q_.nodes[static_cast<std::size_t>(lowest)])
             window = detail::lagrange_weights(q_.nodes.data(), end, x, p, w, lowest);
         ws.in.assign(q_.size(), Real(0));
         for (int a = 0; a < window.points; ++a) ws.in[static_cast<std::size_t>(window.first + a)] = w[a];
