@@ -23,9 +23,9 @@ void BM_layer_solve_full(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_solve_full)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
-// The same solve from faces prepared once (PreparedBoundary): what a new albedo, g, thickness or wavelength costs.
-// The albedo changes every iteration so that nothing but the faces is reused.
-void BM_layer_solve_full_prepared(benchmark::State& state) {
+// Stam's layer solved for `request` from faces prepared once (PreparedBoundary), M = state.range(0): what a new
+// albedo, g, thickness or wavelength costs. The albedo changes every iteration so that nothing but the faces is reused.
+void solve_from_prepared_faces(benchmark::State& state, const stratum::LayerRequest<Real>& request) {
     stratum::LayerOptions options;
     options.ordinates = static_cast<int>(state.range(0));
     const stratum::PreparedBoundary<Real> top(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options);
@@ -33,9 +33,13 @@ void BM_layer_solve_full_prepared(benchmark::State& state) {
     Real albedo = 0.9;
     for (auto _ : state) {
         albedo = albedo == 0.9 ? 0.91 : 0.9;
-        benchmark::DoNotOptimize(stratum::solve_layer(stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5), top, bottom));
+        benchmark::DoNotOptimize(
+            stratum::solve_layer(stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5), top, bottom, request));
     }
 }
+
+// The same solve from prepared faces.
+void BM_layer_solve_full_prepared(benchmark::State& state) { solve_from_prepared_faces(state, {}); }
 BENCHMARK(BM_layer_solve_full_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
 // Preparing the two faces (their operators; the entry tables are built on first evaluation).
@@ -93,18 +97,10 @@ BENCHMARK(BM_layer_solve_reflection_tol1e3)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->
 
 // The same from faces prepared once (the target: <= 1 ms at M = 24).
 void BM_layer_solve_reflection_tol1e3_prepared(benchmark::State& state) {
-    stratum::LayerOptions options;
-    options.ordinates = static_cast<int>(state.range(0));
-    const stratum::PreparedBoundary<Real> top(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options);
-    const stratum::PreparedBoundary<Real> bottom(stratum::RoughDielectric<Real>(0.3, 1.4, 1.0), options);
     stratum::LayerRequest<Real> r;
     r.outputs = stratum::LayerOutput::surface_reflection | stratum::LayerOutput::subsurface_reflection;
     r.tolerance = 1e-3;
-    Real albedo = 0.9;
-    for (auto _ : state) {
-        albedo = albedo == 0.9 ? 0.91 : 0.9;
-        benchmark::DoNotOptimize(stratum::solve_layer(stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5), top, bottom, r));
-    }
+    solve_from_prepared_faces(state, r);
 }
 BENCHMARK(BM_layer_solve_reflection_tol1e3_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
@@ -118,17 +114,9 @@ void BM_layer_solve_fluxes(benchmark::State& state) {
 BENCHMARK(BM_layer_solve_fluxes)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
 void BM_layer_solve_fluxes_prepared(benchmark::State& state) {
-    stratum::LayerOptions options;
-    options.ordinates = static_cast<int>(state.range(0));
-    const stratum::PreparedBoundary<Real> top(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options);
-    const stratum::PreparedBoundary<Real> bottom(stratum::RoughDielectric<Real>(0.3, 1.4, 1.0), options);
     stratum::LayerRequest<Real> r;
     r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
-    Real albedo = 0.9;
-    for (auto _ : state) {
-        albedo = albedo == 0.9 ? 0.91 : 0.9;
-        benchmark::DoNotOptimize(stratum::solve_layer(stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5), top, bottom, r));
-    }
+    solve_from_prepared_faces(state, r);
 }
 BENCHMARK(BM_layer_solve_fluxes_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 

@@ -269,6 +269,6 @@ TEST_CASE("the whole layer's operators equal the adding of its parts in the othe
                 worst = std::fmax(worst, std::fabs((*got[part])[i] - (*want[part])[i]) / size);
         }
     }
-    CHECK(worst < 1e-12);
+    CHECK(worst < 1e-14);  // (measured 8.6e-16)
     MESSAGE("whole layer's operators against the other order of adding: " << worst);
 }

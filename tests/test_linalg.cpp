@@ -251,7 +251,8 @@ TEST_CASE("blocked products and many-column solves agree with plain loops on sha
             double worst = 0;
             for (std::size_t i = 0; i < b.data.size(); ++i) worst = std::fmax(worst, std::fabs(r.data[i] - b.data[i]));
             const double dn = static_cast<double>(n);
-            CHECK(worst <= 16.0 * dn * dn * std::numeric_limits<double>::epsilon() * max_abs(a) * max_abs(x) * dn);
+            // (measured: at most 0.69 n^2 eps |A| |X|)
+            CHECK(worst <= 16.0 * dn * dn * std::numeric_limits<double>::epsilon() * max_abs(a) * max_abs(x));
         }
 }
 
@@ -261,7 +262,7 @@ TEST_CASE("the plane rotations' radius is hypot to an ulp, also where the square
         const double f = rng() * std::pow(10.0, 300 * rng()), g = rng() * std::pow(10.0, 300 * rng());
         const double r = stratum::detail::rotation_radius(f, g), h = std::hypot(f, g);
         CHECK(std::isfinite(r));
-        CHECK(std::fabs(r - h) <= 2 * std::numeric_limits<double>::epsilon() * h);
+        CHECK(std::fabs(r - h) <= std::nextafter(h, HUGE_VAL) - h);  // (1 ulp measured over 1e5 pairs)
     }
     CHECK(stratum::detail::rotation_radius(0.0, 0.0) == 0.0);
     CHECK(stratum::detail::rotation_radius(1e200, 1e200) == std::hypot(1e200, 1e200));

@@ -39,13 +39,20 @@ struct Matrix {
     }
 };
 
-/// Whether fewer than half of the entries are nonzero: then the products and solves below skip the zeros (the
-/// operators of smooth faces are diagonal, and a mode that does not scatter has R = 0 and a diagonal T).
+/// Whether fewer than half of the entries of the first, middle and last rows are nonzero: then the products and
+/// solves below skip the zeros (the operators of smooth faces are diagonal, and a mode that does not scatter has
+/// R = 0 and a diagonal T). A guess from three rows, O(n): it chooses the faster loop, never the result (counting
+/// every entry cost 5% of a layer solve at M = 24).
 template <class Real>
 bool mostly_zero(const Matrix<Real>& a) noexcept {
-    std::size_t nonzero = 0;
-    for (const Real x : a.data) nonzero += x != Real(0);
-    return 2 * nonzero < a.data.size();
+    if (a.rows == 0 || a.cols == 0) return false;
+    std::size_t nonzero = 0, seen = 0;
+    for (const std::size_t i : {std::size_t(0), a.rows / 2, a.rows - 1}) {
+        const Real* r = a.row(i);
+        for (std::size_t j = 0; j < a.cols; ++j) nonzero += r[j] != Real(0);
+        seen += a.cols;
+    }
+    return 2 * nonzero < seen;
 }
 
 /// C = A B. Blocks of 4 rows by 8 columns of C are accumulated in registers over the whole inner dimension (a
