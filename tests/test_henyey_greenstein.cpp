@@ -620,6 +620,21 @@ TEST_CASE("phase_fourier_matrices: layout, symmetry, agreement with the scalar f
     }
 }
 
+TEST_CASE("phase_fourier_matrices appended a few modes at a time equal the matrices computed at once") {
+    // The layer solver computes the modes a request's tolerance reaches one at a time
+    // (detail::append_phase_fourier_modes): the same operations in the same order, so equal bit for bit, also
+    // across the last nonzero mode (N = 11 here).
+    const auto rule = stratum::gauss_legendre_half<double>(7);
+    const auto chi = HenyeyGreenstein<double>(0.8).legendre_moments(12);
+    const auto whole = phase_fourier_matrices(chi, rule.nodes, 15);
+    stratum::PhaseFourierMatrices<double> pieces = phase_fourier_matrices(chi, rule.nodes, 1);
+    for (int modes : {2, 5, 6, 11, 12, 13, 15}) stratum::detail::append_phase_fourier_modes(chi, rule.nodes, modes, pieces);
+    CHECK(pieces.modes == 15);
+    CHECK(pieces.size == 7);
+    CHECK(pieces.same == whole.same);
+    CHECK(pieces.opposite == whole.opposite);
+}
+
 TEST_CASE("phase_fourier_matrices reproduces the phase integral: sum_m w_m p_0(mu_m, mu) + p_0(-mu_m, mu) = 2") {
     // Normalization per mode 0: (1/2) int_{-1}^{1} p_0(mu', mu) dmu' = chi_0 = 1 (4 pi normalization);
     // the half-range Gauss rule per hemisphere integrates the polynomial p_0 exactly when N <= 2M - 1.

@@ -280,34 +280,19 @@ private:
     std::size_t block() const noexcept { return static_cast<std::size_t>(size) * static_cast<std::size_t>(size); }
 };
 
-/// Computes PhaseFourierMatrices for the moments chi[0..N] (chi_0 = 1 for a normalized phase function),
-/// the ordinates mu (each in (0, 1]) and `modes` >= 1 Fourier modes. Modes k > N are zero.
-/// Method: per k, the values Lambda_n^k(mu_m) (n = k..N) are tabulated once per ordinate, split by the
-/// parity of n + k, so that with E = sum over n + k even and O = sum over n + k odd of
-/// (2 - delta_k0)(2n + 1) chi_n Lambda_n^k(mu_m) Lambda_n^k(mu_n'):
-///   p_k(mu_m, mu_n) = E + O,  p_k(-mu_m, mu_n) = E - O   (parity Lambda_n^k(-x) = (-1)^{n+k} Lambda_n^k(x)).
-/// Cost ~ K (M N recurrence steps + M^2 N / 2 multiply-adds). Throws std::invalid_argument for empty or non-finite chi,
-/// an ordinate outside (0, 1], or modes < 1.
-template <class Real>
-PhaseFourierMatrices<Real> phase_fourier_matrices(const std::vector<Real>& chi, const std::vector<Real>& mu,
-                                                   int modes) {
-    detail::require_count("modes", modes, 1);
-    detail::require_count("chi.size()", static_cast<int>(chi.size()), 1);
-    detail::require_count("mu.size()", static_cast<int>(mu.size()), 1);
-    for (std::size_t l = 0; l < chi.size(); ++l)
-        if (!std::isfinite(chi[l]))
-            detail::throw_out_of_range(("chi[" + std::to_string(l) + "]").c_str(), chi[l], "(-inf, inf)");
-    for (std::size_t m = 0; m < mu.size(); ++m)
-        if (!(mu[m] > 0 && mu[m] <= 1))
-            detail::throw_out_of_range(("mu[" + std::to_string(m) + "]").c_str(), mu[m], "(0, 1]");
+namespace detail {
 
-    const int N = static_cast<int>(chi.size()) - 1, M = static_cast<int>(mu.size());
-    const auto Ms = static_cast<std::size_t>(M);
-    PhaseFourierMatrices<Real> out;
+/// Appends modes out.modes .. modes - 1 (modes >= out.modes) to `out`, whose `size` is mu.size(), by the method of
+/// phase_fourier_matrices below (which validates the arguments): a solver that stops at a tolerance computes the
+/// matrices of the modes it solves only. Modes k > N are zero.
+template <class Real>
+void append_phase_fourier_modes(const std::vector<Real>& chi, const std::vector<Real>& mu, int modes,
+                                PhaseFourierMatrices<Real>& out) {
+    const int N = static_cast<int>(chi.size()) - 1, first = out.modes;
+    const auto Ms = mu.size();
     out.modes = modes;
-    out.size = M;
-    out.same.assign(static_cast<std::size_t>(modes) * Ms * Ms, Real(0));
-    out.opposite.assign(out.same.size(), Real(0));
+    out.same.resize(static_cast<std::size_t>(modes) * Ms * Ms, Real(0));
+    out.opposite.resize(out.same.size(), Real(0));
 
     std::vector<detail::LambdaCoefficients<Real>> coef(static_cast<std::size_t>(N) + 1);
     // table[j * M + m] = Lambda_{k+j}^k(mu_m): degree-major, so that the inner loop below runs over
@@ -316,11 +301,14 @@ PhaseFourierMatrices<Real> phase_fourier_matrices(const std::vector<Real>& chi, 
     std::vector<Real> table, weight, even(Ms), odd(Ms);
     std::vector<detail::SectoralSeed<Real>> seeds;  // per ordinate, advanced one order per mode
     seeds.reserve(Ms);
-    for (std::size_t m = 0; m < Ms; ++m) seeds.emplace_back(mu[m]);
+    for (std::size_t m = 0; m < Ms; ++m) {
+        seeds.emplace_back(mu[m]);
+        for (int k = 0; k < first && k < N; ++k) seeds.back().next();  // to order first (O(first) steps)
+    }
     std::vector<detail::LambdaStepper<Real>> steppers;
     steppers.reserve(Ms);
-    for (int k = 0; k < modes && k <= N; ++k) {
-        if (k > 0)
+    for (int k = first; k < modes && k <= N; ++k) {
+        if (k > first)
             for (auto& seed : seeds) seed.next();
         const auto count = static_cast<std::size_t>(N - k + 1);
         for (int n = k + 1; n <= N; ++n) coef[static_cast<std::size_t>(n)] = detail::LambdaCoefficients<Real>::at(n, k);
@@ -370,6 +358,34 @@ PhaseFourierMatrices<Real> phase_fourier_matrices(const std::vector<Real>& chi, 
             }
         }
     }
+}
+
+}  // namespace detail
+
+/// Computes PhaseFourierMatrices for the moments chi[0..N] (chi_0 = 1 for a normalized phase function),
+/// the ordinates mu (each in (0, 1]) and `modes` >= 1 Fourier modes. Modes k > N are zero.
+/// Method: per k, the values Lambda_n^k(mu_m) (n = k..N) are tabulated once per ordinate, split by the
+/// parity of n + k, so that with E = sum over n + k even and O = sum over n + k odd of
+/// (2 - delta_k0)(2n + 1) chi_n Lambda_n^k(mu_m) Lambda_n^k(mu_n'):
+///   p_k(mu_m, mu_n) = E + O,  p_k(-mu_m, mu_n) = E - O   (parity Lambda_n^k(-x) = (-1)^{n+k} Lambda_n^k(x)).
+/// Cost ~ K (M N recurrence steps + M^2 N / 2 multiply-adds). Throws std::invalid_argument for empty or non-finite chi,
+/// an ordinate outside (0, 1], or modes < 1.
+template <class Real>
+PhaseFourierMatrices<Real> phase_fourier_matrices(const std::vector<Real>& chi, const std::vector<Real>& mu,
+                                                   int modes) {
+    detail::require_count("modes", modes, 1);
+    detail::require_count("chi.size()", static_cast<int>(chi.size()), 1);
+    detail::require_count("mu.size()", static_cast<int>(mu.size()), 1);
+    for (std::size_t l = 0; l < chi.size(); ++l)
+        if (!std::isfinite(chi[l]))
+            detail::throw_out_of_range(("chi[" + std::to_string(l) + "]").c_str(), chi[l], "(-inf, inf)");
+    for (std::size_t m = 0; m < mu.size(); ++m)
+        if (!(mu[m] > 0 && mu[m] <= 1))
+            detail::throw_out_of_range(("mu[" + std::to_string(m) + "]").c_str(), mu[m], "(0, 1]");
+
+    PhaseFourierMatrices<Real> out;
+    out.size = static_cast<int>(mu.size());
+    detail::append_phase_fourier_modes(chi, mu, modes, out);
     return out;
 }
 
