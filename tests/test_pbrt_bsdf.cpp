@@ -31,7 +31,10 @@ const TabulatedBSDF<double>& skin_table() {
         const LayeredSurface<double> layer =
             solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), RoughDielectric<double>(0.3, 1.0, 1.4),
                         RoughDielectric<double>(0.3, 1.4, 1.0), o);
-        return TabulatedBSDF<double>(layer, layer, 1e-2);  // symmetric: the turned-over layer is the same
+        // Symmetric: the turned-over layer is the same. Tolerance 3e-3 keeps the 129 nodes the 1e-3 bounds below
+        // were measured on: pbrt-v3 interpolates in mu, where the nodes crowd towards the normal, and at 65 nodes
+        // (the table's 1e-2 since the layer's entry and exit are smooth in mu) it strays to 1.4e-3 there.
+        return TabulatedBSDF<double>(layer, layer, 3e-3);
     }();
     return table;
 }
@@ -169,7 +172,7 @@ TEST_CASE("pbrt .bsdf: three channels (Y, R, B), as pbrt-v3 reads them, from an 
     std::vector<Slab<double>> slabs;
     for (double albedo : {0.95, 0.85, 0.6}) slabs.push_back(Slab<double>::from_transparency(albedo, 0.8, 0.5));
     const auto layers = solve_spectral(slabs, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0), o);
-    const TabulatedBSDF<double> rgb(layers, 1e-2, {0.2126, 0.7152, 0.0722});
+    const TabulatedBSDF<double> rgb(layers, 3e-3, {0.2126, 0.7152, 0.0722});  // 129 nodes, as skin_table()
     const PbrtBsdfTable file = pbrt_bsdf_table(rgb);
     CHECK(file.channels == 3);
     std::ostringstream out;
