@@ -156,6 +156,21 @@ TEST_CASE("threads solving and evaluating layers from one pair of PreparedBounda
     for (const auto& r : results) CHECK(same_bits(r, reference));
 }
 
+TEST_CASE("threads solving a rough coat over a smooth base from one PreparedBoundary build its split rule once, safely") {
+    // A rough top over a smooth bottom is solved on ordinates split at the critical cosines (detail::layer_quadrature):
+    // the prepared top builds its operators on that rule at the first solve that needs it, under a lock, and every
+    // thread must get the plain solve's values.
+    LayerOptions options;
+    options.ordinates = 6;
+    const RoughDielectric<double> coat(0.3, 1.0, 1.4);
+    const stratum::SmoothDielectric<double> base(1.4, 1.0);
+    const Slab<double> slab = Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    const std::vector<double> reference = evaluate_layer(stratum::solve_layer(slab, coat, base, options));
+    const stratum::PreparedBoundary<double> top(coat, options), bottom(base, options);
+    const auto results = run_concurrently([&] { return evaluate_layer(stratum::solve_layer(slab, top, bottom)); });
+    for (const auto& r : results) CHECK(same_bits(r, reference));
+}
+
 TEST_CASE("the layer's shared Gauss rules are computed once, from several threads at once, and equal the fresh rules") {
     // detail::shared_gauss_legendre_half caches gauss_legendre_half(n) for n <= 256 (std::call_once per n): threads
     // asking for the same rules at the same time must all get the fresh rule, bit for bit (and 257, past the

@@ -59,15 +59,25 @@ TEST_CASE("critical split: where the ordinates are split, and the rule") {
     int in_cone = 0;
     for (double x : three.quadrature().nodes) in_cone += x > std::sqrt(1 - 1 / 2.25) ? 1 : 0;
     CHECK(in_cone == 4);
-    // No split: a rough face, index matching on both sides, or the option off.
+    // A rough top over a smooth bottom splits as smooth faces do (its facets blur the critical cosines over more than
+    // half the ordinate spacing: sigma sin(theta_c) = 0.21 here).
+    const auto coat = solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
+                                  SmoothDielectric<double>(1.4, 1.0), options(8));
+    CHECK(coat.quadrature().nodes == q.nodes);
+    // No split: a nearly specular rough top (sigma sin(theta_c) = 0.007 against half the spacing, 0.06), a rough
+    // bottom, a rough top over a Lambertian floor, index matching on both sides, or the option off.
     const Quadrature<double> plain = gauss_legendre_half<double>(8);
+    const auto glossy = solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.01, 1.0, 1.4),
+                                    SmoothDielectric<double>(1.4, 1.0), options(8));
     const auto rough = solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
-                                   SmoothDielectric<double>(1.4, 1.0), options(8));
+                                   RoughDielectric<double>(0.3, 1.4, 1.0), options(8));
+    const auto rough_floor = solve_layer(Slab<double>(0.9, 0.5, 1.0), RoughDielectric<double>(0.3, 1.0, 1.4),
+                                         Boundary<double>::lambertian(0.5, 1.4), options(8));
     const auto matched = solve_layer(Slab<double>(0.9, 0.5, 1.0), Boundary<double>::index_matched(),
                                      Boundary<double>::index_matched(), options(8));
     const auto off = solve_layer(Slab<double>(0.9, 0.5, 1.0), SmoothDielectric<double>(1.0, 1.4),
                                  SmoothDielectric<double>(1.4, 1.0), options(8, false));
-    for (const auto* l : {&rough, &matched, &off}) CHECK(l->quadrature().nodes == plain.nodes);
+    for (const auto* l : {&glossy, &rough, &rough_floor, &matched, &off}) CHECK(l->quadrature().nodes == plain.nodes);
     // A Lambertian floor splits at the top's critical cosine alone.
     const auto floor = solve_layer(Slab<double>(0.9, 0.5, 1.0), SmoothDielectric<double>(1.0, 1.4),
                                    Boundary<double>::lambertian(0.5, 1.4), options(8));
