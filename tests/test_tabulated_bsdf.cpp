@@ -106,9 +106,12 @@ TEST_CASE("TabulatedBSDF agrees with the layer at random true angles within its 
         p.f = n % 2 == 0 ? layer.brdf(p.wi, p.wo) : layer.btdf(p.wi, p.wo);
         pairs.push_back(p);
     }
-    for (double tolerance : {1e-2, 3e-3}) {
+    for (double tolerance : {1e-2, 3e-3, 1e-3}) {
         const TabulatedBSDF<double> table(layer, tolerance);
         CHECK(table.error() <= tolerance);
+        // 65 nodes reach 1e-3 since the layer's blend of the top's lobe with the specular spread is smooth in mu
+        // (docs/physics.md section 6); its kinks held the spline error to O(h^2), and 1e-3 took 129 nodes (2.4 MB).
+        CHECK(table.grid_size() <= 65);
         double worst[2] = {0, 0};
         for (const Pair& p : pairs) {
             const int lobe = p.wo.z > 0 ? 0 : 1;
