@@ -42,6 +42,16 @@ void solve_from_prepared_faces(benchmark::State& state, const stratum::LayerRequ
 void BM_layer_solve_full_prepared(benchmark::State& state) { solve_from_prepared_faces(state, {}); }
 BENCHMARK(BM_layer_solve_full_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
+// The same without the whole layer's operators (LayerOutput::operators, needed only to stack the layer): every
+// other output, from prepared faces.
+void BM_layer_solve_no_operators_prepared(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.outputs = static_cast<stratum::LayerOutput>(static_cast<unsigned>(stratum::LayerOutput::all) &
+                                                  ~static_cast<unsigned>(stratum::LayerOutput::operators));
+    solve_from_prepared_faces(state, r);
+}
+BENCHMARK(BM_layer_solve_no_operators_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+
 // Preparing the two faces (their operators; the entry tables are built on first evaluation).
 void BM_layer_prepare_faces(benchmark::State& state) {
     stratum::LayerOptions options;
