@@ -205,9 +205,8 @@ TEST_CASE("a rough top over a slab (index-matched bottom) agrees with the Monte 
 
 // A rough coat on a smooth base (Stam's top over a smooth 1.4 | 1 bottom): on one half-range rule, which straddles the
 // bottom's critical cosine, the fluxes were off by 0.025 in T at M = 16 and 0.013 at M = 32 for mu0 = 0.3 (this test's
-// photons; in a random sweep of 30 such layers, 2e6 photons each, the worst error at M = 16 was 0.061 and the mean
-// 0.0085). On ordinates split at the critical cosines (detail::layer_quadrature), measured: within 6e-4 at M = 16
-// and 32 (about 1 SE).
+// photons; over 16 random such layers, docs/accuracy.md, up to 0.078 at M = 16). On ordinates split at the critical
+// cosines (detail::layer_quadrature), measured: within 6e-4 at M = 16 and 32 (about 1 SE).
 TEST_CASE("a rough top over a smooth bottom agrees with the Monte Carlo") {
     const mc_layer::Layer layer{MB::gaussian(0.3, 1, 1.4), MB::specular(1.4, 1), 0.9, 0.8, ln2};
     compare_fluxes("rough top, smooth bottom", layer, {allow_rough_16, allow_rough_32}, 450);

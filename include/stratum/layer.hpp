@@ -179,6 +179,15 @@ private:
 
 namespace detail {
 
+/// The spacing of ascending ordinates around x: between the first ordinate at or above x and the one before it
+/// (the first two where x lies below them all; 1 for a single ordinate).
+template <class Real>
+Real spacing_at(const std::vector<Real>& nodes, Real x) noexcept {
+    std::size_t j = 0;
+    while (j + 1 < nodes.size() && nodes[j] < x) ++j;
+    return j > 0 ? nodes[j] - nodes[j - 1] : nodes.size() > 1 ? nodes[1] - nodes[0] : Real(1);
+}
+
 /// A function of mu in (0, 1] tabulated at N + 1 points equispaced in t = sqrt(mu) and interpolated by cubic
 /// Lagrange polynomials in t on the 4 nearest points: the hemispherical transmittance of a rough boundary,
 /// which costs a 2-D integral per value and changes fastest near grazing (its limit at mu -> 0+ differs from
@@ -1182,12 +1191,8 @@ private:
     Real sharp_critical_cosine(const Face& f) const noexcept {
         const Real cut = f.critical_cosine();
         if (!(cut > 0) || !f.rough()) return cut;
-        const std::vector<Real>& nodes = q_.nodes;
-        std::size_t j = 0;
-        while (j + 1 < nodes.size() && nodes[j] < cut) ++j;
-        const Real spacing = j > 0 ? nodes[j] - nodes[j - 1] : nodes.size() > 1 ? nodes[1] - nodes[0] : Real(1);
         const Real spread = f.boundary().rough_interface()->sigma() * std::sqrt((Real(1) - cut) * (Real(1) + cut));
-        return spread < spacing / 2 ? cut : Real(0);
+        return spread < detail::spacing_at(q_.nodes, cut) / 2 ? cut : Real(0);
     }
 
     // The azimuth between the propagation directions -wi and wo: cos(dphi) = -(wi_t . wo_t) / (|wi_t| |wo_t|), from
@@ -1807,11 +1812,6 @@ Quadrature<Real> shared_gauss_legendre_half(int n) {
     return rules[i];
 }
 
-/// The layer's ordinates: the half-range Gauss rule of M points, or, for one slab (or slabs joined by index-matched
-/// faces) under a specular top and over a specular face or a Lambertian floor, with critical cosines inside
-/// (LayerOptions::critical_split), Gauss rules on the panels between them: the panels below the larger critical
-/// cosine mu_c share min(M/2, ceil(M mu_c)) points (at least one each), the escape cone [mu_c, 1] gets the rest
-/// (with too few ordinates, no split); from M = 32 on, the panels above a cut are ruled in sqrt(mu - cut). Nodes ascending, weights summing to 1.
 /// Whether a rough top's facets spread the directions at every critical cosine inside the slab (its own, for light
 /// going up through it, and the bottom's), about sigma sin(theta_c) in cosine, over at least half the spacing of the
 /// half-range rule's ordinates around it (as LayeredSurface::sharp_critical_cosine judges it): then the ordinates may
@@ -1821,18 +1821,22 @@ Quadrature<Real> shared_gauss_legendre_half(int n) {
 template <class Real>
 bool blurs_critical_cosines(const Boundary<Real>& top, const Boundary<Real>& bottom, int m) {
     const Quadrature<Real> plain = shared_gauss_legendre_half<Real>(m);
-    const std::vector<Real>& nodes = plain.nodes;
     for (const Real r : {top.eta_above() / top.eta_below(), bottom.eta_below() / bottom.eta_above()}) {
         if (!(r < 1)) continue;  // no critical cosine inside
         const Real cut = std::sqrt((Real(1) - r) * (Real(1) + r));
-        std::size_t j = 0;
-        while (j + 1 < nodes.size() && nodes[j] < cut) ++j;
-        const Real spacing = j > 0 ? nodes[j] - nodes[j - 1] : nodes.size() > 1 ? nodes[1] - nodes[0] : Real(1);
-        if (top.rough_interface()->sigma() * std::sqrt((Real(1) - cut) * (Real(1) + cut)) < spacing / 2) return false;
+        if (top.rough_interface()->sigma() * std::sqrt((Real(1) - cut) * (Real(1) + cut)) < spacing_at(plain.nodes, cut) / 2)
+            return false;
     }
     return true;
 }
 
+/// The layer's ordinates: the half-range Gauss rule of M points, or, for one slab (or slabs joined by index-matched
+/// faces) under a specular top and over a specular face or a Lambertian floor, or under a rough top that blurs the
+/// critical cosines (blurs_critical_cosines) over a specular face, with critical cosines inside
+/// (LayerOptions::critical_split), Gauss rules on the panels between them: the panels below the larger critical
+/// cosine mu_c share min(M/2, ceil(M mu_c)) points (at least one each), the escape cone [mu_c, 1] gets the rest
+/// (with too few ordinates, no split); a panel of two or more points above a cut is ruled in s with
+/// mu = a + width s^2 (3 - 2 s). Nodes ascending, weights summing to 1.
 template <class Real>
 Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                   const Boundary<Real>& bottom, const LayerOptions& options) {
