@@ -223,6 +223,44 @@ TEST_CASE("a prepared face turned over equals the turned face prepared, bit for 
     CHECK_THROWS_AS(PreparedBoundary<double>(Boundary<double>::lambertian(0.5, 1.4), options).turned_over(), std::invalid_argument);
 }
 
+TEST_CASE("a face prepared again for other options shares its entry tables and equals a fresh preparation") {
+    LayerOptions coarse, fine;
+    coarse.ordinates = 4;
+    coarse.modes = 1;
+    fine.ordinates = 9;
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.2, 1.4, 1.0);
+    const PreparedBoundary<double> top4(top, coarse), bottom4(bottom, coarse);
+    const Slab<double> slab(0.95, 0.8, 1.5);
+    const LayerRequest<double> fluxes{LayerOutput::reflectance | LayerOutput::transmittance, {0.3, 1.0}, {}, 0, 0};
+    (void)solve_layer(slab, top4, bottom4, fluxes);  // builds the entry tables of top4 and bottom4
+    const PreparedBoundary<double> top9(top4, fine), bottom9(bottom4, fine), fresh_top(top, fine), fresh_bottom(bottom, fine);
+    CHECK(top9.options().ordinates == 9);
+    CHECK(top9.operators()->R12().data == fresh_top.operators()->R12().data);
+    for (const LayerRequest<double>& request : requests())
+        CHECK(bit_identical(outputs(solve_layer(slab, fresh_top, fresh_bottom, request)),
+                            outputs(solve_layer(slab, top9, bottom9, request))));
+    // On the same ordinates the renormalization's totals are reused (for all modes from a mode-0 preparation): the
+    // same operators, bit for bit, for a face built as it is and for one built turned over (the bottom).
+    LayerOptions all_modes = coarse;
+    all_modes.modes = 0;
+    const PreparedBoundary<double> top4_all(top4, all_modes), bottom4_all(bottom4, all_modes);
+    const PreparedBoundary<double> fresh_top4(top, all_modes), fresh_bottom4(bottom, all_modes);
+    CHECK(top4_all.operators()->modes() == 8);
+    for (const auto* pair : {&top4_all, &bottom4_all}) {
+        const auto& fresh = pair == &top4_all ? fresh_top4 : fresh_bottom4;
+        CHECK(pair->operators()->R12().data == fresh.operators()->R12().data);
+        CHECK(pair->operators()->T12().data == fresh.operators()->T12().data);
+        CHECK(pair->operators()->R21().data == fresh.operators()->R21().data);
+        CHECK(pair->operators()->T21().data == fresh.operators()->T21().data);
+    }
+    for (const LayerRequest<double>& request : requests())
+        CHECK(bit_identical(outputs(solve_layer(slab, fresh_top4, fresh_bottom4, request)),
+                            outputs(solve_layer(slab, top4_all, bottom4_all, request))));
+    LayerOptions bad;
+    bad.ordinates = 0;
+    CHECK_THROWS_WITH_AS(PreparedBoundary<double>(top4, bad), doctest::Contains("options.ordinates"), std::invalid_argument);
+}
+
 TEST_CASE("solve_spectral: one layer per slab, each identical to its own solve") {
     LayerOptions options;
     options.ordinates = 5;

@@ -203,10 +203,14 @@ public:
     /// eta -> 1 or sigma -> 0 the operators tend to the specular ones (T -> identity at matching). The
     /// price: reciprocity of the matrices is lost (to the size of the correction), the lobe shape in mu
     /// is still only sampled, and 2M hemispherical_totals integrals are added.
+    /// `same_ordinates`, if given, is this interface's operators on the same ordinates (any number of modes, renormalized):
+    /// their ordinate_totals are reused instead of integrated again (they do not depend on the modes), with the same
+    /// result bit for bit; the caller vouches for the ordinates (only their number is checked: ignored otherwise).
     /// Throws std::invalid_argument for modes < 1 or an empty ordinate set.
     InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
                        const AzimuthalQuadrature<Real>& rule = AzimuthalQuadrature<Real>(),
-                       Renormalization renormalization = Renormalization::none)
+                       Renormalization renormalization = Renormalization::none,
+                       const InterfaceOperators* same_ordinates = nullptr)
         : rough_(interface), rule_(rule), modes_(detail::require_count("modes", modes, 1)),
           index_matched_(interface.index_matched()), specular_(interface.index_matched()) {
         detail::require_count("ordinates", static_cast<int>(ordinates.size()), 1);
@@ -225,9 +229,11 @@ public:
         if (interface.eta_above() > interface.eta_below()) {
             // Built the way up (denser medium below) and turned over (flipped()): a layer's bottom face, the turned
             // top, then equals top.flipped() bit for bit, which lets a solve reuse one face for both.
+            const std::optional<InterfaceOperators> same_turned =
+                same_ordinates ? std::optional<InterfaceOperators>(same_ordinates->flipped()) : std::nullopt;
             *this = InterfaceOperators(RoughDielectric<Real>(interface.sigma(), interface.eta_below(),
                                                              interface.eta_above(), interface.shadowing()),
-                                       ordinates, modes, rule, renormalization);
+                                       ordinates, modes, rule, renormalization, same_turned ? &*same_turned : nullptr);
             turn_over();
             return;
         }
@@ -260,7 +266,7 @@ public:
                             for (int k = 0; k < modes; ++k) op(k, b, a) = weight(a) * c[static_cast<std::size_t>(k)];
                         }
                 }
-            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates);
+            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, same_ordinates);
             return;
         }
         for (int a = 0; a < m; ++a) {
@@ -285,7 +291,7 @@ public:
                 }
             }
         }
-        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates);
+        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, same_ordinates);
     }
 
     /// Smooth interface (sigma = 0): exact specular representation (see above). `transmission` chooses how
@@ -457,8 +463,10 @@ private:
     // Scales column m of each operator (all modes alike) so that its flux-weighted sum equals the
     // interface's hemispherical total for incidence mu_m (RoughDielectric::hemispherical_totals), blended continuously
     // with the specular column (see the constructor's comment) where the ordinates miss the lobe.
-    void renormalize(const Quadrature<Real>& ordinates) {
+    void renormalize(const Quadrature<Real>& ordinates, const InterfaceOperators* known) {
         const int m_count = static_cast<int>(ordinates.size());
+        if (known && (known->totals_above_.size() != ordinates.size() || known->totals_below_.size() != ordinates.size()))
+            known = nullptr;
         const auto weight = [&](int i) {
             return ordinates.weights[static_cast<std::size_t>(i)] * ordinates.nodes[static_cast<std::size_t>(i)];
         };
@@ -473,7 +481,9 @@ private:
             const Real eta_o = side == 0 ? rough_->eta_below() : rough_->eta_above();
             for (int m = 0; m < m_count; ++m) {
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
-                const HemisphericalTotals<Real> target = rough_->hemispherical_totals(side == 0 ? mu : -mu);
+                const HemisphericalTotals<Real> target =
+                    known ? known->ordinate_totals(side == 0 ? Incidence::from_above : Incidence::from_below)[static_cast<std::size_t>(m)]
+                          : rough_->hemispherical_totals(side == 0 ? mu : -mu);
                 (side == 0 ? totals_above_ : totals_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {
                     FourierOperators<Real>& op = lobe == 0 ? r : t;

@@ -297,6 +297,20 @@ public:
         if (!boundary.rough()) return;
         plain_ = build(gauss_legendre_half<Real>(options.ordinates));
     }
+    /// The same face prepared for other options (another number of ordinates or modes), sharing what does not
+    /// depend on them: the entry transmittances (built on first use, about 10 ms for a rough face) and, on the same
+    /// ordinates, the renormalization's hemispherical totals (2M integrals): a convergence study or a planner
+    /// (planner.hpp) pays for them once. Equal bit for bit to preparing other.boundary() afresh. Throws as the
+    /// constructor.
+    PreparedBoundary(const PreparedBoundary& other, const LayerOptions& options)
+        : boundary_(other.boundary_), options_(options), from_above_(other.from_above_), from_below_(other.from_below_) {
+        detail::require_count("options.ordinates", options.ordinates, 1);
+        detail::require_count("options.modes", options.modes, 0);
+        if (!boundary_.rough()) return;
+        const bool same_ordinates = other.options_.ordinates == options.ordinates &&
+                                    other.options_.renormalization == options.renormalization;
+        plain_ = build(gauss_legendre_half<Real>(options.ordinates), same_ordinates ? other.plain_.operators.get() : nullptr);
+    }
 
     const Boundary<Real>& boundary() const noexcept { return boundary_; }
     /// The options the operators were built for (all the faces of one solve must share them).
@@ -349,10 +363,13 @@ private:
             return side == Incidence::from_above ? above : below;
         }
     };
-    OnRule build(const Quadrature<Real>& q) const {
+    OnRule build(const Quadrature<Real>& q, const InterfaceOperators<Real>* same_ordinates = nullptr) const {
         OnRule out;
         out.nodes = q.nodes;
-        out.operators = std::make_shared<const InterfaceOperators<Real>>(boundary_.operators(q, modes(), options_));
+        out.operators = std::make_shared<const InterfaceOperators<Real>>(
+            same_ordinates ? InterfaceOperators<Real>(*boundary_.rough_interface(), q, modes(), AzimuthalQuadrature<Real>(),
+                                                      options_.renormalization, same_ordinates)
+                           : boundary_.operators(q, modes(), options_));
         for (const Incidence side : {Incidence::from_above, Incidence::from_below}) {
             std::vector<Real>& t = side == Incidence::from_above ? out.above : out.below;
             const auto& totals = out.operators->ordinate_totals(side);
