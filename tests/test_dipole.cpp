@@ -128,7 +128,7 @@ TEST_CASE("the total diffuse reflectance reproduces the frozen reference values"
     // Recomputed independently with mpmath (tests/data/gen_dipole.py prints them): with A = 2.602064 exactly,
     // R_d(0.5) = 0.07450687658, R_d(0.9) = 0.2991291755, R_d(0.99) = 0.6445255082, R_d(1) = 1: checked to 1e-10
     // (the closed form in double is good to ~1e-16). The frozen 6-digit values agree to 1e-6 (0.644525 is
-    // 0.6445255082 truncated, not rounded; docs/physics.md section 10).
+    // 0.6445255082 truncated, not rounded; docs/physics.md section 11).
     const DipoleBoundary<double> b{1.3, 2.602064};
     CHECK(std::fabs(total_diffuse_reflectance(0.5, b) - 0.07450687658) <= 1e-10);
     CHECK(std::fabs(total_diffuse_reflectance(0.9, b) - 0.2991291755) <= 1e-10);

@@ -232,7 +232,7 @@ TEST_CASE("energy: with incident masking only, R + T = 1 - (facet-scattered ligh
     const auto ea = a.hemispherical_totals(std::cos(40 * pi / 180)), eb = b.hemispherical_totals(std::cos(60 * pi / 180));
     CHECK(1 - ea.reflectance - ea.transmittance == doctest::Approx(0.006).epsilon(0.1));
     CHECK(1 - eb.reflectance - eb.transmittance == doctest::Approx(0.029).epsilon(0.05));
-    // docs/physics.md section 10: the facet-level Monte Carlo gives T = 0.9579 +- 0.0005 and the D form 0.9582.
+    // docs/physics.md section 11: the facet-level Monte Carlo gives T = 0.9579 +- 0.0005 and the D form 0.9582.
     CHECK(ea.transmittance == doctest::Approx(0.9582).epsilon(2e-4));
 }
 

@@ -18,6 +18,7 @@
 #include "adding.hpp"
 #include "interface_operators.hpp"
 #include "layer.hpp"
+#include "planner.hpp"
 #include "slab.hpp"
 #include "tabulated_bsdf.hpp"
 #include "pbrt_bsdf.hpp"

@@ -1,0 +1,239 @@
+// The planner (planner.hpp): the closed form where no solve is needed; fluxes from mode 0 alone; angular outputs at
+// the chosen ordinates with the modes cut at the tolerance, equal to the solve the plan names; and the error
+// estimate checked against a converged solve on random materials (it must bound the true error in at least 95% of
+// them, as the issue asks; the calibration sweep behind the estimate used other materials: docs/accuracy.md).
+#include <doctest/doctest.h>
+
+#include <stratum/planner.hpp>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "test_util.hpp"
+
+using stratum::Boundary;
+using stratum::LayerOptions;
+using stratum::LayerOutput;
+using stratum::LayerRequest;
+using stratum::Material;
+using stratum::Model;
+using stratum::RoughDielectric;
+using stratum::SceneRequest;
+using stratum::Slab;
+using stratum::SmoothDielectric;
+using stratum::Vec3;
+using stratum::solve_planned;
+using stratum::solve_stack;
+using stratum_test::uniform;
+
+namespace {
+
+// Stam's skin layer (docs/physics.md section 6).
+Material<double> skin() {
+    return {RoughDielectric<double>(0.3, 1.0, 1.4), {Slab<double>(0.9, 0.8, std::log(2.0))}, {},
+            RoughDielectric<double>(0.3, 1.4, 1.0)};
+}
+
+LayerOptions with_ordinates(int m, int modes = 0) {
+    LayerOptions o;
+    o.ordinates = m;
+    o.modes = modes;
+    return o;
+}
+
+}  // namespace
+
+TEST_CASE("the top face's reflection alone is the closed form: no solve") {
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::surface_reflection;
+    const auto planned = solve_planned(skin(), scene);
+    CHECK(planned.plan.model == Model::closed_form);
+    CHECK(planned.plan.ordinates_tried.empty());
+    CHECK(planned.plan.estimated_error == 0);
+    const RoughDielectric<double> top(0.3, 1.0, 1.4);
+    const Vec3<double> wi{0.6, 0.0, 0.8}, wo{-0.28, 0.0, 0.96};
+    CHECK(planned.surface.brdf(wi, wo) == doctest::Approx(top.brdf(wi, wo)).epsilon(1e-14));
+    CHECK(planned.surface.reflectance(0.8).subsurface == 0);
+}
+
+TEST_CASE("fluxes alone: mode 0 at doubling ordinates, the last solve is the answer") {
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::reflectance | LayerOutput::transmittance | LayerOutput::surface_reflection;
+    scene.incidence = {0.5, 1.0};
+    scene.tolerance = 1e-2;
+    const auto planned = solve_planned(skin(), scene);
+    const auto& plan = planned.plan;
+    CHECK(plan.model == Model::layer_solver);
+    CHECK(plan.modes == 1);
+    CHECK(plan.tolerance_met);
+    CHECK(plan.estimated_error <= scene.tolerance);
+    CHECK(plan.solve_seconds == 0);
+    REQUIRE(plan.ordinates_tried.size() >= 3);
+    for (std::size_t i = 0; i < plan.ordinates_tried.size(); ++i) CHECK(plan.ordinates_tried[i] == 4 << i);
+    const int m = plan.options.ordinates;
+    CHECK(m == plan.ordinates_tried.back());
+    // The estimate is twice the change from the level before (plan_error_estimate), recomputed here from plain solves.
+    const Material<double> mat = skin();
+    LayerRequest<double> fluxes;
+    fluxes.outputs = scene.outputs;
+    fluxes.incidence = scene.incidence;
+    fluxes.tolerance = scene.tolerance;
+    const auto at = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(m, 1), fluxes);
+    const auto half = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(m / 2, 1), fluxes);
+    const auto quarter = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(m / 4, 1), fluxes);
+    double change = 0, previous = 0;
+    for (const double mu : scene.incidence) {
+        CHECK(planned.surface.reflectance(mu).subsurface == at.reflectance(mu).subsurface);  // bit for bit
+        CHECK(planned.surface.transmittance(mu) == at.transmittance(mu));
+        change = std::max({change, std::fabs(at.reflectance(mu).subsurface - half.reflectance(mu).subsurface),
+                           std::fabs(at.transmittance(mu) - half.transmittance(mu))});
+        previous = std::max({previous, std::fabs(half.reflectance(mu).subsurface - quarter.reflectance(mu).subsurface),
+                             std::fabs(half.transmittance(mu) - quarter.transmittance(mu))});
+    }
+    CHECK(plan.estimated_error == 2 * std::max(change, previous / 4));
+    CHECK(plan.estimated_error > 2 * change);  // (here the guard decides: Stam's layer converges fast from 16 on)
+    const Vec3<double> wi{0.6, 0.0, 0.8}, wo{-0.28, 0.0, 0.96};
+    CHECK(planned.surface.brdf(wi, wo) == at.brdf(wi, wo));  // the top's own reflection, asked
+    CHECK(planned.surface.brdf(wi, wo) > 0);
+    CHECK(planned.surface.subsurface_brdf(wi, wo) == 0);     // (not asked)
+}
+
+TEST_CASE("angular outputs: the plan's solve, modes cut at the tolerance") {
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::subsurface_reflection;
+    scene.incidence = {0.8};
+    scene.tolerance = 1e-3;
+    scene.max_ordinates = 16;  // (the estimate asks for more here: the plan says the tolerance is not met)
+    const auto planned = solve_planned(skin(), scene);
+    const auto& plan = planned.plan;
+    CHECK(plan.options.ordinates == 16);
+    CHECK_FALSE(plan.tolerance_met);
+    CHECK(plan.estimated_error > scene.tolerance);
+    CHECK(plan.estimated_error < 0.1);
+    CHECK(plan.modes > 1);
+    CHECK(plan.modes < 32);
+    const Material<double> mat = skin();
+    const auto direct = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(16), plan.request);
+    CHECK(direct.modes() == plan.modes);
+    const Vec3<double> wi{0.6, 0.0, 0.8};
+    for (const Vec3<double> wo : {Vec3<double>{0.0, 0.0, 1.0}, Vec3<double>{-0.6, 0.0, 0.8}, Vec3<double>{0.0, 0.8, 0.6}})
+        CHECK(planned.surface.subsurface_brdf(wi, wo) == doctest::Approx(direct.subsurface_brdf(wi, wo)).epsilon(1e-12));
+    CHECK(planned.surface.transmittance(0.8) == 0);  // not asked
+}
+
+TEST_CASE("stacks: the interior faces are prepared at every level too") {
+    // A rough coat (n 1.5) on a slab of index 1.4 over a rough base into air: three different rough faces.
+    const Material<double> stack{RoughDielectric<double>(0.2, 1.0, 1.5),
+                                 {Slab<double>(0.5, 0.3, 0.4), Slab<double>(0.95, 0.8, 3.0)},
+                                 {RoughDielectric<double>(0.4, 1.5, 1.4)},
+                                 RoughDielectric<double>(0.3, 1.4, 1.0)};
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+    scene.incidence = {0.7};
+    scene.tolerance = 3e-3;
+    const auto planned = solve_planned(stack, scene);
+    CHECK(planned.plan.tolerance_met);
+    LayerRequest<double> fluxes;
+    fluxes.outputs = scene.outputs;
+    fluxes.incidence = scene.incidence;
+    fluxes.tolerance = scene.tolerance;
+    const auto direct = solve_stack<double>(stack.top, stack.slabs, stack.interior, stack.bottom,
+                                            with_ordinates(planned.plan.options.ordinates, 1), fluxes);
+    CHECK(planned.surface.reflectance(0.7).subsurface == direct.reflectance(0.7).subsurface);
+    CHECK(planned.surface.transmittance(0.7) == direct.transmittance(0.7));
+}
+
+TEST_CASE("the plan names what it could not reach, and refuses bad requests by name") {
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::transmittance;
+    scene.tolerance = 1e-9;
+    scene.max_ordinates = 8;
+    const auto planned = solve_planned(skin(), scene);
+    CHECK_FALSE(planned.plan.tolerance_met);
+    CHECK(std::isfinite(planned.plan.estimated_error));
+    CHECK(planned.plan.reason.find("max_ordinates") != std::string::npos);
+    CHECK(planned.surface.transmittance(0.5) > 0);
+
+    for (const double bad : {0.0, 1.0, -1e-3, std::numeric_limits<double>::quiet_NaN()}) {
+        SceneRequest<double> s;
+        s.tolerance = bad;
+        CHECK_THROWS_WITH_AS(solve_planned(skin(), s), doctest::Contains("tolerance"), std::invalid_argument);
+    }
+    for (const int bad : {3, 257}) {
+        SceneRequest<double> s;
+        s.max_ordinates = bad;
+        CHECK_THROWS_WITH_AS(solve_planned(skin(), s), doctest::Contains("max_ordinates"), std::invalid_argument);
+    }
+    SceneRequest<double> s;
+    s.incidence = {0.5, 0.0};
+    CHECK_THROWS_WITH_AS(solve_planned(skin(), s), doctest::Contains("incidence[1]"), std::invalid_argument);
+}
+
+TEST_CASE("the planner in float") {
+    const Material<float> mat{RoughDielectric<float>(0.3f, 1.0f, 1.4f), {Slab<float>(0.9f, 0.8f, 0.7f)}, {},
+                              SmoothDielectric<float>(1.4f, 1.0f)};
+    SceneRequest<float> scene;
+    scene.outputs = LayerOutput::reflectance;
+    scene.tolerance = 1e-2f;
+    const auto planned = solve_planned(mat, scene);
+    CHECK(planned.plan.tolerance_met);
+    CHECK(planned.surface.reflectance(0.5f).subsurface > 0.01f);
+}
+
+// Random materials of every face kind (smooth, rough, index-matched tops; smooth, rough, index-matched and Lambertian
+// bottoms), random tolerances and incidences; the truth is a mode-0 solve at 128 ordinates. The planner stops at 32
+// here (CI time), where the reference's own error is at most a quarter of the planner's for convergence as 1/M.
+TEST_CASE("randomized sweep: the planner's error estimate bounds the true error in at least 95% of materials") {
+    std::mt19937_64 rng(20261126);  // (the estimate's calibration used seeds 7, 8 and 9 of another generator)
+    int bounded = 0, met = 0, within = 0;
+    const int count = 60;
+    for (int t = 0; t < count; ++t) {
+        const int top_kind = static_cast<int>(3 * uniform(rng)), bottom_kind = static_cast<int>(4 * uniform(rng));
+        const double n = top_kind == 2 ? 1.0 : 1 + 0.6 * uniform(rng);
+        const double albedo = uniform(rng) < 0.2 ? 1.0 : uniform(rng), g = 0.95 * uniform(rng);
+        const double tau = std::pow(10.0, -1.3 + 2.8 * uniform(rng));
+        const double sigma_top = std::pow(10.0, -1.5 + 1.5 * uniform(rng)), sigma_bottom = std::pow(10.0, -1.5 + 1.5 * uniform(rng));
+        const Boundary<double> top = top_kind == 0   ? Boundary<double>(SmoothDielectric<double>(1.0, n))
+                                     : top_kind == 1 ? Boundary<double>(RoughDielectric<double>(sigma_top, 1.0, n))
+                                                     : Boundary<double>::index_matched(1.0);
+        const Boundary<double> bottom = bottom_kind == 0   ? Boundary<double>(SmoothDielectric<double>(n, 1.0))
+                                        : bottom_kind == 1 ? Boundary<double>(RoughDielectric<double>(sigma_bottom, n, 1.0))
+                                        : bottom_kind == 2 ? Boundary<double>::index_matched(n)
+                                                           : Boundary<double>::lambertian(uniform(rng), n);
+        const Material<double> mat{top, {Slab<double>(albedo, g, tau)}, {}, bottom};
+        SceneRequest<double> scene;
+        const bool floor = bottom_kind == 3;
+        scene.outputs = floor ? LayerOutput::reflectance : LayerOutput::reflectance | LayerOutput::transmittance;
+        scene.incidence = {0.05 + 0.95 * uniform(rng)};
+        if (uniform(rng) < 0.5) scene.incidence.push_back(1.0);
+        scene.tolerance = std::pow(10.0, -3 + 1.5 * uniform(rng));
+        scene.max_ordinates = 32;
+        const auto planned = solve_planned(mat, scene);
+        LayerRequest<double> reference_request;
+        reference_request.outputs = scene.outputs;
+        reference_request.incidence = scene.incidence;
+        reference_request.tolerance = scene.tolerance;
+        const auto reference =
+            solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(128, 1), reference_request);
+        double error = 0;
+        for (const double mu : scene.incidence) {
+            error = std::max(error, std::fabs(planned.surface.reflectance(mu).subsurface - reference.reflectance(mu).subsurface));
+            if (!floor) error = std::max(error, std::fabs(planned.surface.transmittance(mu) - reference.transmittance(mu)));
+        }
+        INFO("material " << t << ": top " << top_kind << ", bottom " << bottom_kind << ", n " << n << ", albedo " << albedo
+                         << ", g " << g << ", tau " << tau << ", sigma " << sigma_top << " " << sigma_bottom << "; " << planned.plan.reason << "; true error " << error);
+        CHECK(std::isfinite(planned.plan.estimated_error));
+        if (error > planned.plan.estimated_error) MESSAGE("not bounded: material " << t << ", true error " << error << ", " << planned.plan.reason);
+        bounded += error <= planned.plan.estimated_error;
+        if (planned.plan.tolerance_met) {
+            ++met;
+            within += error <= scene.tolerance;
+        }
+    }
+    CHECK(bounded >= 0.95 * count);
+    CHECK(met >= count / 2);  // (a test that could pass with every plan giving up would not test the estimate)
+    CHECK(within >= 0.95 * met);
+}
