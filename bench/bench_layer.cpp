@@ -3,7 +3,9 @@
 #include <benchmark/benchmark.h>
 
 #include <stratum/layer.hpp>
+#include <stratum/planner.hpp>
 
+#include <cmath>
 #include <vector>
 
 namespace {
@@ -21,7 +23,30 @@ stratum::LayeredSurface<Real> skin(int ordinates, const stratum::LayerRequest<Re
 void BM_layer_solve_full(benchmark::State& state) {
     for (auto _ : state) benchmark::DoNotOptimize(skin(static_cast<int>(state.range(0))));
 }
-BENCHMARK(BM_layer_solve_full)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_layer_solve_full)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond);
+
+// The planner (planner.hpp) on Stam's layer at mu0 = 0.5: outputs state.range(0) (0: fluxes, 1: subsurface reflection,
+// 2: all) at tolerance 10^-state.range(1), from nothing. It chooses 32 ordinates at 1e-2 and 64 at 1e-3: compare with
+// BM_layer_solve_full at those (docs/accuracy.md, "Planner: cost against the full solve").
+void BM_planner_skin(benchmark::State& state) {
+    const stratum::Material<Real> skin{stratum::RoughDielectric<Real>(0.3, 1.0, 1.4),
+                                       {stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5)}, {},
+                                       stratum::RoughDielectric<Real>(0.3, 1.4, 1.0)};
+    stratum::SceneRequest<Real> scene;
+    const stratum::LayerOutput outputs[] = {stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance,
+                                            stratum::LayerOutput::subsurface_reflection, stratum::LayerOutput::all};
+    scene.outputs = outputs[state.range(0)];
+    scene.incidence = {0.5};
+    scene.tolerance = std::pow(Real(10), -Real(state.range(1)));
+    int ordinates = 0;
+    for (auto _ : state) {
+        const auto planned = stratum::solve_planned(skin, scene);
+        ordinates = planned.plan.options.ordinates;
+        benchmark::DoNotOptimize(planned.surface.reflectance(0.5).subsurface);
+    }
+    state.counters["ordinates"] = ordinates;
+}
+BENCHMARK(BM_planner_skin)->ArgsProduct({{0, 1, 2}, {2, 3}})->Unit(benchmark::kMillisecond);
 
 // Stam's layer solved for `request` from faces prepared once (PreparedBoundary), M = state.range(0): what a new
 // albedo, g, thickness or wavelength costs. The albedo changes every iteration so that nothing but the faces is reused.
