@@ -636,6 +636,28 @@ void planner() {
                     needed / std::max(met, 1));
     }
 
+    std::printf("\n## Planner: the diffusion profile (dipole) against the layer solver\n\nA half-space (tau = 1e4) under a "
+                "smooth face, sigma_t = 1 per unit length: the dipole's total diffuse reflectance at normal incidence, "
+                "F_t(1) R_d,total, against the layer solver's subsurface reflectance R(1) at the planner's ordinates "
+                "(tolerance 1e-4): Plan::profile_error, absolute and relative to R(1).\n\n| n | albedo | g | alpha' | R(1) | "
+                "profile error | relative |\n|---|---|---|---|---|---|---|\n");
+    for (const double n : {1.0, 1.35})
+        for (const double albedo : {0.5, 0.9, 0.99, 0.999})
+            for (const double g : {0.0, 0.8}) {
+                using B = stratum::Boundary<double>;
+                const stratum::Material<double> half_space{n == 1.0 ? B::index_matched(1.0) : B(stratum::SmoothDielectric<double>(1.0, n)),
+                                                           {stratum::Slab<double>(albedo, g, 1e4)}, {}, B::index_matched(n), 1.0};
+                stratum::SceneRequest<double> scene;
+                scene.outputs = LayerOutput::reflectance;
+                scene.incidence = {1.0};
+                scene.tolerance = 1e-4;
+                scene.diffusion_profile = true;
+                const auto planned = stratum::solve_planned(half_space, scene);
+                const double r = planned.surface.reflectance(1.0).subsurface;
+                std::printf("| %.2f | %.3f | %.1f | %.4f | %.4f | %.1e | %.1f%% |\n", n, albedo, g, planned.dipole->alpha_prime(), r,
+                            planned.plan.profile_error, 100 * planned.plan.profile_error / r);
+            }
+
     std::printf("\n## Planner: cost against the full solve\n\nstratum::solve_planned (its mode-0 levels and, for angular "
                 "outputs, the final solve) against solve_layer at the ordinates it chose with every output and all 2M "
                 "modes, from nothing (processor time, best of 3). Stam's skin layer and a smooth-faced slab (n 1.4 in air, "

@@ -146,6 +146,38 @@ TEST_CASE("stacks: the interior faces are prepared at every level too") {
     CHECK(planned.surface.transmittance(0.7) == direct.transmittance(0.7));
 }
 
+TEST_CASE("a diffusion profile: the dipole of the slab, checked against the layer's reflectance at normal incidence") {
+    // Milk-like: a thick slab (tau 1e3) under a smooth face n 1.35, sigma_t 10 / mm.
+    for (const double albedo : {0.999, 0.9, 0.5}) {
+        const Material<double> milk{SmoothDielectric<double>(1.0, 1.35), {Slab<double>(albedo, 0.7, 1e3)}, {},
+                                    Boundary<double>::index_matched(1.35), 10.0};
+        SceneRequest<double> scene;
+        scene.outputs = LayerOutput::subsurface_reflection;
+        scene.incidence = {0.6};
+        scene.tolerance = 1e-3;
+        scene.diffusion_profile = true;
+        scene.length_scale = 2;  // mm per pixel
+        const auto planned = solve_planned(milk, scene);
+        REQUIRE(planned.dipole.has_value());
+        const stratum::Dipole<double>& d = *planned.dipole;
+        CHECK(d.sigma_a() == doctest::Approx((1 - albedo) * 10).epsilon(1e-12));
+        CHECK(d.sigma_s_prime() == doctest::Approx(albedo * 0.3 * 10).epsilon(1e-12));
+        CHECK(d.eta() == doctest::Approx(1.35).epsilon(1e-15));
+        // The error recomputed: the dipole's total at normal incidence (entry Fresnel factor, closed form) against the
+        // planned layer's subsurface reflectance at mu = 1 (added to the checked incidences).
+        const double entry = 1 - stratum_test::fresnel_closed_form(1.0, 1.35);
+        const double layer = planned.surface.reflectance(1.0).subsurface;
+        CHECK(planned.plan.profile_error == doctest::Approx(std::fabs(entry * d.total_reflectance() - layer)).epsilon(1e-12));
+        // Within 2% of the layer's reflectance near alpha' = 1; far off at low albedo, where diffusion fails.
+        if (albedo == 0.999) CHECK(planned.plan.profile_error < 0.02 * layer);
+        if (albedo == 0.5) CHECK(planned.plan.profile_error > 0.5 * layer);
+        // Local at 2 mm only where the diffuse mean free path 1 / sqrt(3 sigma_a sigma_t') is below 0.2 mm.
+        CHECK(planned.plan.profile_local == (d.diffuse_mean_free_path() < 0.2));
+        if (albedo == 0.999) CHECK_FALSE(planned.plan.profile_local);  // (ld = 3.3 mm)
+        if (albedo == 0.5) CHECK(planned.plan.profile_local);          // (ld = 0.10 mm)
+    }
+}
+
 TEST_CASE("the plan names what it could not reach, and refuses bad requests by name") {
     SceneRequest<double> scene;
     scene.outputs = LayerOutput::transmittance;
@@ -170,6 +202,17 @@ TEST_CASE("the plan names what it could not reach, and refuses bad requests by n
     SceneRequest<double> s;
     s.incidence = {0.5, 0.0};
     CHECK_THROWS_WITH_AS(solve_planned(skin(), s), doctest::Contains("incidence[1]"), std::invalid_argument);
+    SceneRequest<double> profile;
+    profile.diffusion_profile = true;
+    CHECK_THROWS_WITH_AS(solve_planned(skin(), profile), doctest::Contains("extinction"), std::invalid_argument);
+    Material<double> two = skin();
+    two.slabs.push_back(two.slabs.front());
+    two.interior.push_back(Boundary<double>::index_matched(1.4));
+    two.extinction = 1;
+    CHECK_THROWS_WITH_AS(solve_planned(two, profile), doctest::Contains("one slab"), std::invalid_argument);
+    SceneRequest<double> scale;
+    scale.length_scale = -1;
+    CHECK_THROWS_WITH_AS(solve_planned(skin(), scale), doctest::Contains("length_scale"), std::invalid_argument);
 }
 
 TEST_CASE("the planner in float") {

@@ -15,6 +15,13 @@
 // least 95% of them, and docs/accuracy.md reports a larger sweep. Angular outputs (BRDF, BTDF, the layer's operators)
 // are then solved at that M with their Fourier modes cut at the same tolerance relative to mode 0
 // (LayerRequest::tolerance); their error is not estimated separately.
+//
+// The diffusion profile. A renderer's BSSRDF needs the radial profile R_d(r), which only the dipole gives
+// (dipole.hpp: a half-space, diffusion, similarity). Asked for (SceneRequest::diffusion_profile), the plan builds it
+// from the slab (albedo, g and Material::extinction) and estimates its error as that of its integral: the dipole's
+// total diffuse reflectance at normal incidence, F_t(1) R_d,total, against the layer solver's subsurface
+// reflectance R(1) of the same material at the chosen ordinates (within 1.6% of R(1) for reduced albedos of 0.99 and
+// above, tens of percent at 0.5: docs/accuracy.md). With the scene's length scale it also says whether the profile matters at all.
 #pragma once
 
 #include <algorithm>
@@ -27,6 +34,8 @@
 #include <vector>
 
 #include "detail/validate.hpp"
+#include "dipole.hpp"
+#include "fresnel.hpp"
 #include "layer.hpp"
 
 namespace stratum {
@@ -39,6 +48,9 @@ struct Material {
     std::vector<Slab<Real>> slabs;
     std::vector<Boundary<Real>> interior;
     Boundary<Real> bottom;
+    /// The extinction coefficient sigma_t of a one-slab material in 1/length (its optical depth per unit length), for
+    /// a diffusion profile in that length unit; 0: not given.
+    Real extinction = 0;
 };
 
 /// What a scene needs from a material.
@@ -52,6 +64,13 @@ struct SceneRequest {
     Real tolerance = Real(1e-3);
     /// The largest number of ordinates the planner may use (4 to 256); past it the plan says the tolerance is not met.
     int max_ordinates = 64;
+    /// Also the diffusion profile R_d(r) for a BSSRDF (the dipole, PlannedLayer::dipole): needs one slab and
+    /// Material::extinction.
+    bool diffusion_profile = false;
+    /// The smallest length the scene resolves (a pixel's footprint on the surface), in the unit of
+    /// Material::extinction; 0: not given. With a diffusion profile, the plan says whether it is local
+    /// (Plan::profile_local).
+    Real length_scale = 0;
 };
 
 /// Which model answers the request.
@@ -72,6 +91,13 @@ struct Plan {
     int modes = 0;                ///< Fourier modes of the final solve (1 for fluxes and ambient alone)
     double planning_seconds = 0;  ///< measured: the mode-0 solves that chose the ordinates
     double solve_seconds = 0;     ///< measured: the final solve (0 when the last mode-0 solve is the answer)
+    /// With a diffusion profile: |F_t(1) R_d,total - R(1)|, the dipole's total diffuse reflectance at normal incidence
+    /// against the layer solver's (fractions of the incident flux; see the file comment). 0 otherwise.
+    Real profile_error = 0;
+    /// With a diffusion profile and a length scale: the profile's diffuse mean free path 1 / sigma_tr is below a tenth
+    /// of the length scale, so the dipole's sampling density (dipole.hpp) puts all but 11 e^-10 = 5e-4 of it within
+    /// the scene's resolution: subsurface transport is local there, and the layer's BRDF answers it without a BSSRDF.
+    bool profile_local = false;
     std::string reason;           ///< one line: why this model and these settings
 };
 
@@ -79,6 +105,7 @@ template <class Real = double>
 struct PlannedLayer {
     Plan<Real> plan;
     LayeredSurface<Real> surface;  ///< evaluate the requested outputs here (the others give 0)
+    std::optional<Dipole<Real>> dipole;  ///< the diffusion profile, when asked for
 };
 
 /// The estimated error at the ordinates of the last level, from the largest changes of the checked fluxes between
@@ -142,42 +169,68 @@ inline std::string format_number(double x) {
     return buffer;
 }
 
+// The dipole of a one-slab material (sigma_a = (1 - albedo) sigma_t, sigma_s' = albedo (1 - g) sigma_t, eta of the top
+// face), its error against the solved layer's reflectance at normal incidence, and whether it is local at the
+// scene's length scale; written into the plan.
+template <class Real>
+Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& scene, const LayeredSurface<Real>& solved,
+                          Plan<Real>& plan) {
+    const Slab<Real>& slab = m.slabs.front();
+    const Real eta = m.top.eta_below() / m.top.eta_above();
+    const Dipole<Real> dipole(slab.one_minus_albedo() * m.extinction, slab.albedo() * (1 - slab.g()) * m.extinction, eta);
+    const Real entry = 1 - fresnel_dielectric(Real(1), eta);
+    plan.profile_error = std::fabs(entry * dipole.total_reflectance() - solved.reflectance(Real(1)).subsurface);
+    plan.profile_local = scene.length_scale > 0 && dipole.diffuse_mean_free_path() < scene.length_scale / 10;
+    return dipole;
+}
+
 }  // namespace detail
 
 /// Plans and solves: the closed form for the top face's reflection alone; otherwise the layer solver at the fewest
 /// ordinates (4, 8, 16, ... up to request.max_ordinates) whose estimated error in the checked fluxes is within
-/// request.tolerance (see the file comment), with only the Fourier modes the outputs need. Throws
-/// std::invalid_argument for a tolerance outside (0, 1), max_ordinates outside [4, 256], an incidence outside
-/// (0, 1], or a material solve_stack rejects.
+/// request.tolerance (see the file comment), with only the Fourier modes the outputs need; and the dipole for a
+/// diffusion profile. Throws std::invalid_argument for a tolerance outside (0, 1), max_ordinates outside [4, 256],
+/// an incidence outside (0, 1], a negative or non-finite length scale, a diffusion profile without one slab or a
+/// positive finite extinction, or a material solve_stack rejects.
 template <class Real>
 PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequest<Real>& scene) {
     const auto start = std::chrono::steady_clock::now();
     detail::require_open("tolerance", scene.tolerance, Real(0), Real(1));
     if (scene.max_ordinates < 4 || scene.max_ordinates > 256)
         detail::throw_out_of_range("max_ordinates", scene.max_ordinates, "[4, 256]");
+    detail::require_nonnegative("length_scale", scene.length_scale);
+    if (scene.diffusion_profile) {
+        if (material.slabs.size() != 1)
+            detail::fail_invalid_argument("stratum: a diffusion profile needs a material of one slab, got " +
+                                          std::to_string(material.slabs.size()));
+        detail::require_positive("extinction", material.extinction);
+    }
     // (the incidences are checked by the first solve, as request.incidence)
 
     Plan<Real> plan;
     plan.request.outputs = scene.outputs;
     plan.request.incidence = scene.incidence;
     plan.request.tolerance = scene.tolerance;
-    if (scene.outputs == LayerOutput::surface_reflection) {
+    if (scene.outputs == LayerOutput::surface_reflection && !scene.diffusion_profile) {
         plan.options.ordinates = 1;
         plan.reason = "closed form: the top face's own reflection needs no solve";
         LayeredSurface<Real> s = solve_stack(material.top, material.slabs, material.interior, material.bottom,
                                              plan.options, plan.request);
         plan.solve_seconds = detail::seconds_since(start);
-        return {std::move(plan), std::move(s)};
+        return {std::move(plan), std::move(s), std::nullopt};
     }
 
     plan.model = Model::layer_solver;
     const bool angular =
         includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::transmission | LayerOutput::operators);
     const bool transmitted = includes(scene.outputs, LayerOutput::transmission | LayerOutput::transmittance);
-    const bool reflected = !transmitted || includes(scene.outputs, LayerOutput::subsurface_reflection |
-                                                                       LayerOutput::reflectance | LayerOutput::ambient);
-    const std::vector<Real> checked =
+    const bool reflected = !transmitted || scene.diffusion_profile ||
+                           includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::reflectance |
+                                                       LayerOutput::ambient);
+    std::vector<Real> checked =
         scene.incidence.empty() ? std::vector<Real>{Real(1), Real(0.7), Real(0.4), Real(0.1)} : scene.incidence;
+    if (scene.diffusion_profile && std::find(checked.begin(), checked.end(), Real(1)) == checked.end())
+        checked.push_back(Real(1));  // (the dipole is checked at normal incidence)
     LayerRequest<Real> level_request;  // mode 0: the checked fluxes and what else the request asks of mode 0
     const auto mode_zero = LayerOutput::surface_reflection | LayerOutput::ambient;
     level_request.outputs = (reflected ? LayerOutput::reflectance : LayerOutput{}) |
@@ -212,19 +265,25 @@ PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequ
     plan.reason = "layer solver: " + std::to_string(plan.options.ordinates) + " ordinates, estimated error " +
                   detail::format_number(double(estimate)) + (plan.tolerance_met ? " <= " : " > (max_ordinates reached) ") +
                   detail::format_number(double(scene.tolerance));
+    std::optional<Dipole<Real>> dipole;
+    if (scene.diffusion_profile) dipole = detail::plan_profile(material, scene, *last, plan);
+    const std::string profile =
+        !dipole ? std::string()
+                : "; diffusion profile: the dipole, its total reflectance " + detail::format_number(double(plan.profile_error)) +
+                      " from the layer's" + (plan.profile_local ? " (local at the scene's length scale: the BRDF suffices)" : "");
     if (!angular) {
         plan.request = level_request;
         plan.modes = last->modes();
-        plan.reason += "; Fourier mode 0 only (no angular output asked)";
-        return {std::move(plan), std::move(*last)};
+        plan.reason += "; Fourier mode 0 only (no angular output asked)" + profile;
+        return {std::move(plan), std::move(*last), std::move(dipole)};
     }
     const auto solve_start = std::chrono::steady_clock::now();
     LayeredSurface<Real> s = solve_stack(faces->top, material.slabs, faces->interior, faces->bottom, plan.request);
     plan.solve_seconds = detail::seconds_since(solve_start);
     plan.modes = s.modes();
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
-                   " Fourier modes (cut at the tolerance)";
-    return {std::move(plan), std::move(s)};
+                   " Fourier modes (cut at the tolerance)" + profile;
+    return {std::move(plan), std::move(s), std::move(dipole)};
 }
 
 }  // namespace stratum
