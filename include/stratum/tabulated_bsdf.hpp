@@ -306,21 +306,25 @@ struct SurfaceLobe {
 // channels, the luminance and all channels but one, which follows from them): pair p = a n + b holds series s at
 // coeffs[offset[p] + s L .. offset[p] + (s + 1) L). Per row a, the running integral over the exit of
 // m(t) = a_0(t_a, t) dmu/dt (series 0) along the row's spline: cdf[a n + b] = int_0^{t_b} m dt (so
-// cdf[a n + n - 1] is the lobe's albedo over 2 pi at mu_a).
+// cdf[a n + n - 1] is the lobe's albedo over 2 pi at mu_a). The coefficients are stored in float for any Real:
+// their rounding (6e-8 relative) lies far below any table's interpolation error (1e-4 at the finest grid,
+// docs/accuracy.md), and it halves a double table (pbrt-v3's and layerlab's files store float too); the cdf is
+// built from the stored values, so sampling and pdf agree with them exactly.
 template <class Real>
 struct FourierTable {
     std::vector<std::uint32_t> offset;
-    std::vector<Real> coeffs, cdf;
+    std::vector<float> coeffs;
+    std::vector<Real> cdf;
     int series = 1;
     bool empty() const noexcept { return coeffs.empty(); }
     int order(std::size_t p) const noexcept {
         const std::uint32_t all = offset[p + 1] - offset[p];
         return static_cast<int>(series == 1 ? all : all / static_cast<std::uint32_t>(series));
     }
-    const Real* pair(std::size_t p, int s = 0) const noexcept {
+    const float* pair(std::size_t p, int s = 0) const noexcept {
         return coeffs.data() + offset[p] + static_cast<std::size_t>(s) * static_cast<std::size_t>(order(p));
     }
-    Real mean(std::size_t p) const noexcept { return offset[p + 1] > offset[p] ? coeffs[offset[p]] : Real(0); }
+    Real mean(std::size_t p) const noexcept { return offset[p + 1] > offset[p] ? Real(coeffs[offset[p]]) : Real(0); }
 };
 
 }  // namespace detail
@@ -625,11 +629,11 @@ private:
 
         int n() const noexcept { return static_cast<int>(t.size()); }
         std::size_t bytes() const noexcept {
-            const std::size_t reals = t.size() + jacobian.size() + reflection.coeffs.size() + reflection.cdf.size() +
-                                      transmission.coeffs.size() + transmission.cdf.size() + surface_albedo.size() +
-                                      beam_reflected.size() + beam_transmitted.size() + luminance.size() +
-                                      (surface_lobe ? surface_lobe->l.size() : std::size_t(0));
-            return sizeof(Real) * reals + sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size());
+            const std::size_t reals = t.size() + jacobian.size() + reflection.cdf.size() + transmission.cdf.size() +
+                                      surface_albedo.size() + beam_reflected.size() + beam_transmitted.size() +
+                                      luminance.size() + (surface_lobe ? surface_lobe->l.size() : std::size_t(0));
+            return sizeof(Real) * reals + sizeof(float) * (reflection.coeffs.size() + transmission.coeffs.size()) +
+                   sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size());
         }
         detail::SplineWeights<Real> weights(Real mu) const noexcept {
             return detail::spline_weights(n(), detail::cosine_parameter(mu));
@@ -662,13 +666,13 @@ private:
                     const int len = tab.order(p);
                     for (int k = order; k < len; ++k) c[k] = 0;
                     order = std::max(order, len);
-                    const Real* src = tab.pair(p, series);
+                    const float* src = tab.pair(p, series);
                     const Real we = si.even[a] * so.even[b], wo = si.odd[a] * so.odd[b];
                     if (we == wo) {
-                        for (int k = 0; k < len; ++k) c[k] += we * src[k];
+                        for (int k = 0; k < len; ++k) c[k] += we * Real(src[k]);
                     } else {
-                        for (int k = 0; k < len; k += 2) c[k] += we * src[k];
-                        for (int k = 1; k < len; k += 2) c[k] += wo * src[k];
+                        for (int k = 0; k < len; k += 2) c[k] += we * Real(src[k]);
+                        for (int k = 1; k < len; k += 2) c[k] += wo * Real(src[k]);
                     }
                 }
             return order;
@@ -1015,7 +1019,7 @@ FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real
             for (const DenseLobe<L>* lobe : series) {
                 const int len = orders[static_cast<std::size_t>(i * n + o)];
                 const L* a = lobe->pair(2 * i, 2 * o);
-                for (int k = 0; k < len; ++k) tab.coeffs.push_back(k < lobe->modes ? static_cast<Real>(a[k]) : Real(0));
+                for (int k = 0; k < len; ++k) tab.coeffs.push_back(k < lobe->modes ? static_cast<float>(a[k]) : 0.0f);
             }
     tab.cdf.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Real(0));
     for (int i = 0; i < n; ++i) {
