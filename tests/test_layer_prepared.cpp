@@ -189,6 +189,14 @@ TEST_CASE("boundaries prepared for different discretizations are refused, naming
     bad.ordinates = 4;
     bad.modes = -1;
     CHECK_THROWS_WITH_AS(PreparedBoundary<double>(top, bad), doctest::Contains("options.modes"), std::invalid_argument);
+    LayerOptions e = a, f = a;
+    e.hemispherical_nodes = 10;
+    f.azimuthal_points = 12;
+    CHECK_THROWS_WITH_AS(solve_layer(slab, PreparedBoundary<double>(top, a), PreparedBoundary<double>(bottom, e)),
+                         doctest::Contains("bottom was prepared with options.hemispherical_nodes = 10, the top with 16"),
+                         std::invalid_argument);
+    CHECK_THROWS_WITH_AS(solve_layer(slab, PreparedBoundary<double>(top, a), PreparedBoundary<double>(bottom, f)),
+                         doctest::Contains("options.azimuthal_points = 12"), std::invalid_argument);
 }
 
 TEST_CASE("prepared boundaries in float") {

@@ -37,8 +37,9 @@ Material<double> skin() {
             RoughDielectric<double>(0.3, 1.4, 1.0)};
 }
 
-LayerOptions with_ordinates(int m, int modes = 0) {
-    LayerOptions o;
+// The plan's options (its integrals' knobs too) at other ordinates and modes.
+LayerOptions with_ordinates(const LayerOptions& plan, int m, int modes = 0) {
+    LayerOptions o = plan;
     o.ordinates = m;
     o.modes = modes;
     return o;
@@ -75,15 +76,17 @@ TEST_CASE("fluxes alone: mode 0 at doubling ordinates, the last solve is the ans
     for (std::size_t i = 0; i < plan.ordinates_tried.size(); ++i) CHECK(plan.ordinates_tried[i] == 4 << i);
     const int m = plan.options.ordinates;
     CHECK(m == plan.ordinates_tried.back());
+    CHECK(plan.options.hemispherical_nodes == 10);  // (integrals no finer than a tolerance of 1e-2 needs)
+    CHECK(plan.options.azimuthal_points == 12);
     // The estimate is twice the change from the level before (plan_error_estimate), recomputed here from plain solves.
     const Material<double> mat = skin();
     LayerRequest<double> fluxes;
     fluxes.outputs = scene.outputs;
     fluxes.incidence = scene.incidence;
     fluxes.tolerance = scene.tolerance;
-    const auto at = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(m, 1), fluxes);
-    const auto half = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(m / 2, 1), fluxes);
-    const auto quarter = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(m / 4, 1), fluxes);
+    const auto at = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(plan.options, m, 1), fluxes);
+    const auto half = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(plan.options, m / 2, 1), fluxes);
+    const auto quarter = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(plan.options, m / 4, 1), fluxes);
     double change = 0, previous = 0;
     for (const double mu : scene.incidence) {
         CHECK(planned.surface.reflectance(mu).subsurface == at.reflectance(mu).subsurface);  // bit for bit
@@ -116,7 +119,7 @@ TEST_CASE("angular outputs: the plan's solve, modes cut at the tolerance") {
     CHECK(plan.modes > 1);
     CHECK(plan.modes < 32);
     const Material<double> mat = skin();
-    const auto direct = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(16), plan.request);
+    const auto direct = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(plan.options, 16), plan.request);
     CHECK(direct.modes() == plan.modes);
     const Vec3<double> wi{0.6, 0.0, 0.8};
     for (const Vec3<double> wo : {Vec3<double>{0.0, 0.0, 1.0}, Vec3<double>{-0.6, 0.0, 0.8}, Vec3<double>{0.0, 0.8, 0.6}})
@@ -141,7 +144,7 @@ TEST_CASE("stacks: the interior faces are prepared at every level too") {
     fluxes.incidence = scene.incidence;
     fluxes.tolerance = scene.tolerance;
     const auto direct = solve_stack<double>(stack.top, stack.slabs, stack.interior, stack.bottom,
-                                            with_ordinates(planned.plan.options.ordinates, 1), fluxes);
+                                            with_ordinates(planned.plan.options, planned.plan.options.ordinates, 1), fluxes);
     CHECK(planned.surface.reflectance(0.7).subsurface == direct.reflectance(0.7).subsurface);
     CHECK(planned.surface.transmittance(0.7) == direct.transmittance(0.7));
 }
@@ -185,6 +188,8 @@ TEST_CASE("the plan names what it could not reach, and refuses bad requests by n
     scene.max_ordinates = 8;
     const auto planned = solve_planned(skin(), scene);
     CHECK_FALSE(planned.plan.tolerance_met);
+    CHECK(planned.plan.options.hemispherical_nodes == 16);  // (the defaults below 1e-4)
+    CHECK(planned.plan.options.azimuthal_points == 24);
     CHECK(std::isfinite(planned.plan.estimated_error));
     CHECK(planned.plan.reason.find("max_ordinates") != std::string::npos);
     CHECK(planned.surface.transmittance(0.5) > 0);
@@ -260,7 +265,7 @@ TEST_CASE("randomized sweep: the planner's error estimate bounds the true error 
         reference_request.incidence = scene.incidence;
         reference_request.tolerance = scene.tolerance;
         const auto reference =
-            solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(128, 1), reference_request);
+            solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, with_ordinates(LayerOptions{}, 128, 1), reference_request);
         double error = 0;
         for (const double mu : scene.incidence) {
             error = std::max(error, std::fabs(planned.surface.reflectance(mu).subsurface - reference.reflectance(mu).subsurface));

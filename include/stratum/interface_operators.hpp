@@ -203,17 +203,20 @@ public:
     /// eta -> 1 or sigma -> 0 the operators tend to the specular ones (T -> identity at matching). The
     /// price: reciprocity of the matrices is lost (to the size of the correction), the lobe shape in mu
     /// is still only sampled, and 2M hemispherical_totals integrals are added.
-    /// `same_ordinates`, if given, is this interface's operators on the same ordinates (any number of modes, renormalized):
+    /// `totals_nodes`: the Gauss nodes per panel of the renormalization's integrals (RoughDielectric::hemispherical_totals).
+    /// `same_ordinates`, if given, is this interface's operators on the same ordinates (any number of modes, renormalized
+    /// with the same totals_nodes):
     /// their ordinate_totals are reused instead of integrated again (they do not depend on the modes), with the same
     /// result bit for bit; the caller vouches for the ordinates (only their number is checked: ignored otherwise).
     /// Throws std::invalid_argument for modes < 1 or an empty ordinate set.
     InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
                        const AzimuthalQuadrature<Real>& rule = AzimuthalQuadrature<Real>(),
-                       Renormalization renormalization = Renormalization::none,
+                       Renormalization renormalization = Renormalization::none, int totals_nodes = 16,
                        const InterfaceOperators* same_ordinates = nullptr)
         : rough_(interface), rule_(rule), modes_(detail::require_count("modes", modes, 1)),
           index_matched_(interface.index_matched()), specular_(interface.index_matched()) {
         detail::require_count("ordinates", static_cast<int>(ordinates.size()), 1);
+        detail::require_count("totals_nodes", totals_nodes, 2);
         const int m = static_cast<int>(ordinates.size());
         if (index_matched_) {
             set_index_matched(m);
@@ -233,7 +236,8 @@ public:
                 same_ordinates ? std::optional<InterfaceOperators>(same_ordinates->flipped()) : std::nullopt;
             *this = InterfaceOperators(RoughDielectric<Real>(interface.sigma(), interface.eta_below(),
                                                              interface.eta_above(), interface.shadowing()),
-                                       ordinates, modes, rule, renormalization, same_turned ? &*same_turned : nullptr);
+                                       ordinates, modes, rule, renormalization, totals_nodes,
+                                       same_turned ? &*same_turned : nullptr);
             turn_over();
             return;
         }
@@ -266,7 +270,7 @@ public:
                             for (int k = 0; k < modes; ++k) op(k, b, a) = weight(a) * c[static_cast<std::size_t>(k)];
                         }
                 }
-            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, same_ordinates);
+            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, same_ordinates);
             return;
         }
         for (int a = 0; a < m; ++a) {
@@ -291,7 +295,7 @@ public:
                 }
             }
         }
-        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, same_ordinates);
+        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, same_ordinates);
     }
 
     /// Smooth interface (sigma = 0): exact specular representation (see above). `transmission` chooses how
@@ -463,7 +467,7 @@ private:
     // Scales column m of each operator (all modes alike) so that its flux-weighted sum equals the
     // interface's hemispherical total for incidence mu_m (RoughDielectric::hemispherical_totals), blended continuously
     // with the specular column (see the constructor's comment) where the ordinates miss the lobe.
-    void renormalize(const Quadrature<Real>& ordinates, const InterfaceOperators* known) {
+    void renormalize(const Quadrature<Real>& ordinates, int nodes, const InterfaceOperators* known) {
         const int m_count = static_cast<int>(ordinates.size());
         if (known && (known->totals_above_.size() != ordinates.size() || known->totals_below_.size() != ordinates.size()))
             known = nullptr;
@@ -483,7 +487,7 @@ private:
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
                 const HemisphericalTotals<Real> target =
                     known ? known->ordinate_totals(side == 0 ? Incidence::from_above : Incidence::from_below)[static_cast<std::size_t>(m)]
-                          : rough_->hemispherical_totals(side == 0 ? mu : -mu);
+                          : rough_->hemispherical_totals(side == 0 ? mu : -mu, nodes);
                 (side == 0 ? totals_above_ : totals_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {
                     FourierOperators<Real>& op = lobe == 0 ? r : t;
