@@ -181,6 +181,21 @@ TEST_CASE("a diffusion profile: the dipole of the slab, checked against the laye
     }
 }
 
+TEST_CASE("a diffusion profile under a face into a less dense medium: the exact F_dr where Jensen's fit does not hold") {
+    // Water (1.33) under glass (1.5): eta = 1.33 / 1.5 < 1, outside the fit's [1, 3].
+    const Material<double> under_glass{SmoothDielectric<double>(1.5, 1.33), {Slab<double>(0.99, 0.5, 1e3)}, {},
+                                       Boundary<double>::index_matched(1.33), 2.0};
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::reflectance;
+    scene.tolerance = 1e-2;
+    scene.diffusion_profile = true;
+    const auto planned = solve_planned(under_glass, scene);
+    REQUIRE(planned.dipole.has_value());
+    CHECK(planned.dipole->eta() == doctest::Approx(1.33 / 1.5).epsilon(1e-15));
+    CHECK(planned.dipole->A() == doctest::Approx(stratum::dipole_A(1.33 / 1.5, stratum::DiffuseFresnel::exact)).epsilon(1e-15));
+    CHECK(std::isfinite(planned.plan.profile_error));
+}
+
 TEST_CASE("the plan names what it could not reach, and refuses bad requests by name") {
     SceneRequest<double> scene;
     scene.outputs = LayerOutput::transmittance;
@@ -199,7 +214,7 @@ TEST_CASE("the plan names what it could not reach, and refuses bad requests by n
         s.tolerance = bad;
         CHECK_THROWS_WITH_AS(solve_planned(skin(), s), doctest::Contains("tolerance"), std::invalid_argument);
     }
-    for (const int bad : {3, 257}) {
+    for (const int bad : {4, 7, 257}) {  // (at least two levels, 4 and 8, for an estimate)
         SceneRequest<double> s;
         s.max_ordinates = bad;
         CHECK_THROWS_WITH_AS(solve_planned(skin(), s), doctest::Contains("max_ordinates"), std::invalid_argument);

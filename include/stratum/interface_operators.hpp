@@ -203,20 +203,34 @@ public:
     /// eta -> 1 or sigma -> 0 the operators tend to the specular ones (T -> identity at matching). The
     /// price: reciprocity of the matrices is lost (to the size of the correction), the lobe shape in mu
     /// is still only sampled, and 2M hemispherical_totals integrals are added.
-    /// `totals_nodes`: the Gauss nodes per panel of the renormalization's integrals (RoughDielectric::hemispherical_totals).
+    /// `totals_nodes`: the Gauss nodes per panel of the renormalization's integrals (RoughDielectric::hemispherical_totals,
+    /// 2 to 32).
     /// `same_ordinates`, if given, is this interface's operators on the same ordinates (any number of modes, renormalized
     /// with the same totals_nodes):
     /// their ordinate_totals are reused instead of integrated again (they do not depend on the modes), with the same
     /// result bit for bit; the caller vouches for the ordinates (only their number is checked: ignored otherwise).
-    /// Throws std::invalid_argument for modes < 1 or an empty ordinate set.
+    /// Throws std::invalid_argument for modes < 1, an empty ordinate set or totals_nodes outside [2, 32].
     InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
                        const AzimuthalQuadrature<Real>& rule = AzimuthalQuadrature<Real>(),
                        Renormalization renormalization = Renormalization::none, int totals_nodes = 16,
                        const InterfaceOperators* same_ordinates = nullptr)
+        : InterfaceOperators(interface, ordinates, modes, rule, renormalization, totals_nodes,
+                             KnownTotals{same_ordinates ? &same_ordinates->totals_above_ : nullptr,
+                                         same_ordinates ? &same_ordinates->totals_below_ : nullptr}) {}
+
+private:
+    // Totals at the ordinates already integrated (by operators of the same face on the same ordinates), per side.
+    struct KnownTotals {
+        const std::vector<HemisphericalTotals<Real>>* above = nullptr;
+        const std::vector<HemisphericalTotals<Real>>* below = nullptr;
+    };
+    InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
+                       const AzimuthalQuadrature<Real>& rule, Renormalization renormalization, int totals_nodes,
+                       KnownTotals known)
         : rough_(interface), rule_(rule), modes_(detail::require_count("modes", modes, 1)),
           index_matched_(interface.index_matched()), specular_(interface.index_matched()) {
         detail::require_count("ordinates", static_cast<int>(ordinates.size()), 1);
-        detail::require_count("totals_nodes", totals_nodes, 2);
+        if (totals_nodes < 2 || totals_nodes > 32) detail::throw_out_of_range("totals_nodes", totals_nodes, "[2, 32]");
         const int m = static_cast<int>(ordinates.size());
         if (index_matched_) {
             set_index_matched(m);
@@ -232,12 +246,10 @@ public:
         if (interface.eta_above() > interface.eta_below()) {
             // Built the way up (denser medium below) and turned over (flipped()): a layer's bottom face, the turned
             // top, then equals top.flipped() bit for bit, which lets a solve reuse one face for both.
-            const std::optional<InterfaceOperators> same_turned =
-                same_ordinates ? std::optional<InterfaceOperators>(same_ordinates->flipped()) : std::nullopt;
             *this = InterfaceOperators(RoughDielectric<Real>(interface.sigma(), interface.eta_below(),
                                                              interface.eta_above(), interface.shadowing()),
                                        ordinates, modes, rule, renormalization, totals_nodes,
-                                       same_turned ? &*same_turned : nullptr);
+                                       KnownTotals{known.below, known.above});  // (the sides exchange)
             turn_over();
             return;
         }
@@ -270,7 +282,7 @@ public:
                             for (int k = 0; k < modes; ++k) op(k, b, a) = weight(a) * c[static_cast<std::size_t>(k)];
                         }
                 }
-            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, same_ordinates);
+            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, known);
             return;
         }
         for (int a = 0; a < m; ++a) {
@@ -295,9 +307,10 @@ public:
                 }
             }
         }
-        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, same_ordinates);
+        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, known);
     }
 
+public:
     /// Smooth interface (sigma = 0): exact specular representation (see above). `transmission` chooses how
     /// the Snell-mapped transmission is put on the ordinates (default: pointwise); `points` is the local
     /// Lagrange window (0 = the default: 2 for flux_conserving, 4 for pointwise; at most M is used).
@@ -467,10 +480,10 @@ private:
     // Scales column m of each operator (all modes alike) so that its flux-weighted sum equals the
     // interface's hemispherical total for incidence mu_m (RoughDielectric::hemispherical_totals), blended continuously
     // with the specular column (see the constructor's comment) where the ordinates miss the lobe.
-    void renormalize(const Quadrature<Real>& ordinates, int nodes, const InterfaceOperators* known) {
+    void renormalize(const Quadrature<Real>& ordinates, int nodes, KnownTotals known) {
         const int m_count = static_cast<int>(ordinates.size());
-        if (known && (known->totals_above_.size() != ordinates.size() || known->totals_below_.size() != ordinates.size()))
-            known = nullptr;
+        const bool reuse = known.above && known.below && known.above->size() == ordinates.size() &&
+                           known.below->size() == ordinates.size();
         const auto weight = [&](int i) {
             return ordinates.weights[static_cast<std::size_t>(i)] * ordinates.nodes[static_cast<std::size_t>(i)];
         };
@@ -486,7 +499,7 @@ private:
             for (int m = 0; m < m_count; ++m) {
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
                 const HemisphericalTotals<Real> target =
-                    known ? known->ordinate_totals(side == 0 ? Incidence::from_above : Incidence::from_below)[static_cast<std::size_t>(m)]
+                    reuse ? (side == 0 ? *known.above : *known.below)[static_cast<std::size_t>(m)]
                           : rough_->hemispherical_totals(side == 0 ? mu : -mu, nodes);
                 (side == 0 ? totals_above_ : totals_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {

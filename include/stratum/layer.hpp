@@ -291,14 +291,14 @@ private:
 
 }  // namespace detail
 
-/// A boundary with its operators built for one discretization: LayerOptions::ordinates, ::modes (0: 2M) and
-/// ::renormalization. They depend on the face alone, never on the slab, and are most of a rough-faced solve's cost:
+/// A boundary with its operators built for one discretization: LayerOptions::ordinates, ::modes (0: 2M),
+/// ::renormalization, ::hemispherical_nodes and ::azimuthal_points. They depend on the face alone, never on the slab, and are most of a rough-faced solve's cost:
 /// prepare the faces once and pass them to solve_layer / solve_stack for every slab (an edit of albedo, g or
 /// thickness, another wavelength), which then pays for the slab alone. The result is identical to a solve from
 /// the plain Boundary, bit for bit, when the request solves all the prepared modes; a request for fewer
 /// (LayerRequest::max_modes, or no angular output: fluxes and the ambient term need mode 0 alone) uses the
 /// prepared operators, whose azimuthal rule resolves more modes than it needs: equal within that rule's error
-/// (1e-12). A specular (smooth or index-matched) face has cheap operators and keeps none: they are built
+/// (1e-12 at the default 24 points; ~5e-7 at 12). A specular (smooth or index-matched) face has cheap operators and keeps none: they are built
 /// at each solve. Immutable; copies share the operators; usable from several threads at once.
 template <class Real>
 class LayeredSurface;
@@ -306,7 +306,8 @@ class LayeredSurface;
 template <class Real = double>
 class PreparedBoundary {
 public:
-    /// Throws std::invalid_argument for options.ordinates < 1 or options.modes < 0.
+    /// Throws std::invalid_argument for options out of range (detail::require_options: ordinates < 1, modes < 0,
+    /// hemispherical_nodes outside [2, 32], azimuthal_points < 2), naming the option.
     explicit PreparedBoundary(const Boundary<Real>& boundary, const LayerOptions& options = {})
         : boundary_(boundary), options_(options),
           from_above_(std::make_shared<const detail::EntryTransmittance<Real>>(boundary, Incidence::from_above)),
@@ -315,12 +316,12 @@ public:
         if (!boundary.rough()) return;
         plain_ = build(gauss_legendre_half<Real>(options.ordinates));
     }
-    /// The same face prepared for other options (another number of ordinates or modes), sharing what does not
-    /// depend on them: the entry transmittances (built on first use, about 10 ms for a rough face) and, on the same
-    /// ordinates, the renormalization's hemispherical totals (2M integrals): a convergence study or a planner
-    /// (planner.hpp) pays for them once. Equal bit for bit to preparing other.boundary() afresh. Throws as the
-    /// constructor.
-    PreparedBoundary(const PreparedBoundary& other, const LayerOptions& options)
+    /// The same face prepared for other options, sharing what does not depend on them: the entry transmittances
+    /// (built on first use, about 10 ms for a rough face), which a convergence study over the ordinates or the
+    /// planner (planner.hpp) then builds once; and, on the same ordinates and hemispherical_nodes (more modes after
+    /// a mode-0 preparation, say), the renormalization's hemispherical totals (2M integrals). Equal bit for bit to
+    /// preparing other.boundary() afresh. Throws as the constructor.
+    explicit PreparedBoundary(const PreparedBoundary& other, const LayerOptions& options)
         : boundary_(other.boundary_), options_(options), from_above_(other.from_above_), from_below_(other.from_below_) {
         detail::require_options(options);
         if (!boundary_.rough()) return;

@@ -4,12 +4,15 @@
 //
 // The models. The top face's own reflection (LayerOutput::surface_reflection alone) is a closed form: the rough
 // face's BRDF or the Fresnel mirror, no solve. Everything that enters the layer is the discrete-ordinate solution
-// (layer.hpp), whose error is set by the number of ordinates M: the planner finds the smallest M of 4, 8, 16, ...
-// whose estimated error is within the tolerance, and solves the requested outputs there.
+// (layer.hpp), whose error is set by the number of ordinates M: the planner solves M = 4, 8, 16, ... (4 times a
+// power of 2, up to SceneRequest::max_ordinates) and takes the first M from 8 on whose estimated error is within the
+// tolerance, then solves the requested outputs there.
 //
 // The error estimate. The checked quantities are the hemispherical fluxes the request implies (the subsurface
 // reflectance and the transmittance, each where asked) at the scene's incidences (SceneRequest::incidence; when
-// none are given, at mu = 1, 0.7, 0.4 and 0.1). Each level is a mode-0 solve (cheap: no azimuthal modes), and the
+// none are given, at mu = 1, 0.7, 0.4 and 0.1). Each level solves mode 0 alone (the fluxes need no other; for
+// angular outputs the rough faces are prepared with every mode at each level, so that the chosen level's faces
+// serve the final solve), and the
 // error at M is estimated from the changes between levels (plan_error_estimate). Its reliability is measured, not
 // assumed: tests/test_planner.cpp checks on random materials that it bounds the true error (against M = 128) in at
 // least 95% of them, and docs/accuracy.md reports a larger sweep. Angular outputs (BRDF, BTDF, the layer's operators)
@@ -62,7 +65,8 @@ struct SceneRequest {
     std::vector<Real> incidence;
     /// Absolute error allowed in the fluxes, as fractions of the incident flux, in (0, 1).
     Real tolerance = Real(1e-3);
-    /// The largest number of ordinates the planner may use (4 to 256); past it the plan says the tolerance is not met.
+    /// The largest number of ordinates the planner may use, 8 to 256 (the levels are 4 times powers of 2: 100 stops
+    /// at 64); past it the plan says the tolerance is not met.
     int max_ordinates = 64;
     /// Also the diffusion profile R_d(r) for a BSSRDF (the dipole, PlannedLayer::dipole): needs one slab and
     /// Material::extinction.
@@ -83,9 +87,12 @@ enum class Model {
 template <class Real = double>
 struct Plan {
     Model model = Model::closed_form;
-    LayerOptions options;         ///< the discretization of the final solve (ordinates chosen; the rest default)
+    /// The discretization of the final solve: the ordinates chosen, the modes prepared (1 for fluxes alone, 0 = 2M
+    /// otherwise) and, at tolerances of 1e-4 and above, cheaper integrals for rough faces (hemispherical_nodes,
+    /// azimuthal_points); the rest default.
+    LayerOptions options;
     LayerRequest<Real> request;   ///< what the final solve computed
-    Real estimated_error = 0;     ///< estimated largest absolute error of the checked fluxes (0: closed form)
+    Real estimated_error = 0;     ///< estimated largest absolute error of the checked fluxes (0: closed form; finite otherwise)
     bool tolerance_met = true;    ///< false: max_ordinates reached with estimated_error above the tolerance
     std::vector<int> ordinates_tried;  ///< the mode-0 solves that chose the ordinates, in order
     int modes = 0;                ///< Fourier modes of the final solve (1 for fluxes and ambient alone)
@@ -114,7 +121,8 @@ struct PlannedLayer {
 /// With an error falling as M^-p the last change is (2^p - 1) times the error: the factor 2 covers convergence down
 /// to p = 0.58 (a rough bottom face converges about as 1/M). Convergence is not monotone (the ordinates move past
 /// the critical cosines as M doubles), and a level can land near the answer by chance: the previous change, a
-/// quarter of it, guards against that. Measured on 560 random materials (docs/physics.md section 10): without the
+/// quarter of it, guards against that (from the second change on: the first level, 8 ordinates, has only the one
+/// change from 4). Measured on 560 random materials (docs/physics.md section 10): without the
 /// guard the estimate bounded the error at 98.2% of the levels 8 to 64 but was once 64 times below it; with it,
 /// 98.9%, at worst 3.2 times below, for 3 to 7% more levels.
 template <class Real>
@@ -176,8 +184,12 @@ template <class Real>
 Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& scene, const LayeredSurface<Real>& solved,
                           Plan<Real>& plan) {
     const Slab<Real>& slab = m.slabs.front();
+    // Jensen's fit of F_dr where it holds (production's convention, section 8), the exact F_dr elsewhere (a top
+    // leading into a less dense medium, or eta above 3).
     const Real eta = m.top.eta_below() / m.top.eta_above();
-    const Dipole<Real> dipole(slab.one_minus_albedo() * m.extinction, slab.albedo() * (1 - slab.g()) * m.extinction, eta);
+    const DiffuseFresnel model = eta >= 1 && eta <= 3 ? DiffuseFresnel::jensen_fit : DiffuseFresnel::exact;
+    const Dipole<Real> dipole(slab.one_minus_albedo() * m.extinction, slab.albedo() * (1 - slab.g()) * m.extinction,
+                              eta, model);
     const Real entry = 1 - fresnel_dielectric(Real(1), eta);
     plan.profile_error = std::fabs(entry * dipole.total_reflectance() - solved.reflectance(Real(1)).subsurface);
     plan.profile_local = scene.length_scale > 0 && dipole.diffuse_mean_free_path() < scene.length_scale / 10;
@@ -187,17 +199,21 @@ Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& sce
 }  // namespace detail
 
 /// Plans and solves: the closed form for the top face's reflection alone; otherwise the layer solver at the fewest
-/// ordinates (4, 8, 16, ... up to request.max_ordinates) whose estimated error in the checked fluxes is within
+/// ordinates (8, 16, 32, ... up to request.max_ordinates) whose estimated error in the checked fluxes is within
 /// request.tolerance (see the file comment), with only the Fourier modes the outputs need; and the dipole for a
-/// diffusion profile. Throws std::invalid_argument for a tolerance outside (0, 1), max_ordinates outside [4, 256],
+/// diffusion profile. Throws std::invalid_argument for a tolerance outside (0, 1), max_ordinates outside [8, 256],
 /// an incidence outside (0, 1], a negative or non-finite length scale, a diffusion profile without one slab or a
-/// positive finite extinction, or a material solve_stack rejects.
+/// positive finite extinction, or a material solve_stack rejects; std::domain_error if a level's fluxes are not
+/// finite (the solver's contract is that they are).
 template <class Real>
 PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequest<Real>& scene) {
     const auto start = std::chrono::steady_clock::now();
     detail::require_open("tolerance", scene.tolerance, Real(0), Real(1));
-    if (scene.max_ordinates < 4 || scene.max_ordinates > 256)
-        detail::throw_out_of_range("max_ordinates", scene.max_ordinates, "[4, 256]");
+    if (scene.max_ordinates < 8 || scene.max_ordinates > 256)
+        detail::throw_out_of_range("max_ordinates", scene.max_ordinates, "[8, 256]");
+    for (std::size_t j = 0; j < scene.incidence.size(); ++j)
+        detail::require_closed(("incidence[" + std::to_string(j) + "]").c_str(), scene.incidence[j],
+                               std::nextafter(Real(0), Real(1)), Real(1));
     detail::require_nonnegative("length_scale", scene.length_scale);
     if (scene.diffusion_profile) {
         if (material.slabs.size() != 1)
@@ -205,7 +221,6 @@ PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequ
                                           std::to_string(material.slabs.size()));
         detail::require_positive("extinction", material.extinction);
     }
-    // (the incidences are checked by the first solve, as request.incidence)
 
     Plan<Real> plan;
     plan.request.outputs = scene.outputs;
@@ -223,7 +238,8 @@ PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequ
     plan.model = Model::layer_solver;
     const bool angular =
         includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::transmission | LayerOutput::operators);
-    const bool transmitted = includes(scene.outputs, LayerOutput::transmission | LayerOutput::transmittance);
+    const bool transmitted =
+        includes(scene.outputs, LayerOutput::transmission | LayerOutput::transmittance | LayerOutput::operators);
     const bool reflected = !transmitted || scene.diffusion_profile ||
                            includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::reflectance |
                                                        LayerOutput::ambient);
@@ -239,10 +255,12 @@ PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequ
     level_request.incidence = checked;
     level_request.tolerance = scene.tolerance;
 
-    // Integrals no finer than the tolerance needs: at 1e-4 and above the rough faces' hemispherical integrals at 10
-    // nodes (5.8e-7) and their azimuthal rule at 12 points (~5e-7) are 170 times inside it (LayerOptions).
+    // Integrals no finer than the tolerance needs (LayerOptions): the rough faces' hemispherical integrals at 10
+    // nodes from 1e-3 (worst 9e-6, at sigma 0.3, n 2.5), at 12 from 1e-4 (about 5 times less), and their azimuthal
+    // rule at 12 points (~5e-7) from 1e-4. Every level shares this error, which the estimate cannot see: it is
+    // kept 50 to 100 times inside the tolerance.
     if (scene.tolerance >= Real(1e-4)) {
-        plan.options.hemispherical_nodes = 10;
+        plan.options.hemispherical_nodes = scene.tolerance >= Real(1e-3) ? 10 : 12;
         plan.options.azimuthal_points = 12;
     }
     std::vector<Real> previous, changes;
@@ -258,7 +276,13 @@ PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequ
         std::vector<Real> fluxes = detail::checked_fluxes(*last, checked, reflected, transmitted);
         if (!previous.empty()) {
             Real change = 0;
-            for (std::size_t i = 0; i < fluxes.size(); ++i) change = std::max(change, std::fabs(fluxes[i] - previous[i]));
+            for (std::size_t i = 0; i < fluxes.size(); ++i) {
+                const Real d = std::fabs(fluxes[i] - previous[i]);
+                if (!(d < std::numeric_limits<Real>::infinity()))
+                    detail::fail_domain_error("stratum: solve_planned: a flux at " + std::to_string(m) +
+                                              " ordinates is not finite");
+                change = std::max(change, d);
+            }
             changes.push_back(change);
             estimate = plan_error_estimate(changes);
             if (estimate <= scene.tolerance) break;
