@@ -196,6 +196,102 @@ Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& sce
     return dipole;
 }
 
+// The request's checks, in solve_planned's order: tolerance, max_ordinates, incidences, length scale, profile.
+template <class Real>
+void require_scene(const Material<Real>& material, const SceneRequest<Real>& scene) {
+    require_open("tolerance", scene.tolerance, Real(0), Real(1));
+    if (scene.max_ordinates < 8 || scene.max_ordinates > 256)
+        throw_out_of_range("max_ordinates", scene.max_ordinates, "[8, 256]");
+    for (std::size_t j = 0; j < scene.incidence.size(); ++j)
+        require_closed(("incidence[" + std::to_string(j) + "]").c_str(), scene.incidence[j],
+                       std::nextafter(Real(0), Real(1)), Real(1));
+    require_nonnegative("length_scale", scene.length_scale);
+    if (scene.diffusion_profile) {
+        if (material.slabs.size() != 1)
+            fail_invalid_argument("stratum: a diffusion profile needs a material of one slab, got " +
+                                  std::to_string(material.slabs.size()));
+        require_positive("extinction", material.extinction);
+    }
+}
+
+// What the levels check: the fluxes the outputs imply, at the scene's incidences (or a default set; with normal
+// incidence added for a diffusion profile), and the mode-0 request that computes them with what else the request asks
+// of mode 0.
+template <class Real>
+struct Checked {
+    bool angular, transmitted, reflected;
+    std::vector<Real> incidence;
+    LayerRequest<Real> request;
+    explicit Checked(const SceneRequest<Real>& scene)
+        : angular(includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::transmission | LayerOutput::operators)),
+          transmitted(includes(scene.outputs, LayerOutput::transmission | LayerOutput::transmittance | LayerOutput::operators)),
+          reflected(!transmitted || scene.diffusion_profile ||
+                    includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::reflectance | LayerOutput::ambient)),
+          incidence(scene.incidence.empty() ? std::vector<Real>{Real(1), Real(0.7), Real(0.4), Real(0.1)} : scene.incidence) {
+        if (scene.diffusion_profile && std::find(incidence.begin(), incidence.end(), Real(1)) == incidence.end())
+            incidence.push_back(Real(1));  // (the dipole is checked at normal incidence)
+        const auto mode_zero = static_cast<unsigned>(LayerOutput::surface_reflection | LayerOutput::ambient);
+        request.outputs = (reflected ? LayerOutput::reflectance : LayerOutput{}) |
+                          (transmitted ? LayerOutput::transmittance : LayerOutput{}) |
+                          static_cast<LayerOutput>(static_cast<unsigned>(scene.outputs) & mode_zero);
+        request.incidence = incidence;
+        request.tolerance = scene.tolerance;
+    }
+};
+
+// The level search's result: the chosen level's faces and its mode-0 solve.
+template <class Real>
+struct Levels {
+    PreparedFaces<Real> faces;
+    LayeredSurface<Real> last;
+};
+
+// Solves the levels M = 4, 8, 16, ... until the estimate meets the tolerance or max_ordinates is reached; writes the
+// options, the ordinates tried, the estimate and the first part of the reason into the plan.
+template <class Real>
+Levels<Real> solve_levels(const Material<Real>& material, const SceneRequest<Real>& scene, const Checked<Real>& checked,
+                          Plan<Real>& plan) {
+    // Integrals no finer than the tolerance needs (LayerOptions): the rough faces' hemispherical integrals at 10
+    // nodes from 1e-3 (worst 9e-6, at sigma 0.3, n 2.5), at 12 from 1e-4 (about 5 times less), and their azimuthal
+    // rule at 12 points (~5e-7) from 1e-4. Every level shares this error, which the estimate cannot see: it is
+    // kept 50 to 100 times inside the tolerance.
+    if (scene.tolerance >= Real(1e-4)) {
+        plan.options.hemispherical_nodes = scene.tolerance >= Real(1e-3) ? 10 : 12;
+        plan.options.azimuthal_points = 12;
+    }
+    std::vector<Real> previous, changes;
+    std::optional<PreparedFaces<Real>> faces;
+    std::optional<LayeredSurface<Real>> last;
+    Real estimate = std::numeric_limits<Real>::infinity();
+    for (int m = 4; m <= scene.max_ordinates; m *= 2) {
+        plan.options.ordinates = m;
+        plan.options.modes = checked.angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
+        faces = prepare_faces(material, plan.options, faces ? &*faces : nullptr);
+        last = solve_stack(faces->top, material.slabs, faces->interior, faces->bottom, checked.request);
+        plan.ordinates_tried.push_back(m);
+        std::vector<Real> fluxes = checked_fluxes(*last, checked.incidence, checked.reflected, checked.transmitted);
+        if (!previous.empty()) {
+            Real change = 0;
+            for (std::size_t i = 0; i < fluxes.size(); ++i) {
+                const Real d = std::fabs(fluxes[i] - previous[i]);
+                if (!(d < std::numeric_limits<Real>::infinity()))
+                    fail_domain_error("stratum: solve_planned: a flux at " + std::to_string(m) + " ordinates is not finite");
+                change = std::max(change, d);
+            }
+            changes.push_back(change);
+            estimate = plan_error_estimate(changes);
+            if (estimate <= scene.tolerance) break;
+        }
+        previous = std::move(fluxes);
+    }
+    plan.estimated_error = estimate;
+    plan.tolerance_met = estimate <= scene.tolerance;
+    plan.reason = "layer solver: " + std::to_string(plan.options.ordinates) + " ordinates, estimated error " +
+                  format_number(double(estimate)) + (plan.tolerance_met ? " <= " : " > (max_ordinates reached) ") +
+                  format_number(double(scene.tolerance));
+    return {std::move(*faces), std::move(*last)};
+}
+
 }  // namespace detail
 
 /// Plans and solves: the closed form for the top face's reflection alone; otherwise the layer solver at the fewest
@@ -208,20 +304,7 @@ Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& sce
 template <class Real>
 PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequest<Real>& scene) {
     const auto start = std::chrono::steady_clock::now();
-    detail::require_open("tolerance", scene.tolerance, Real(0), Real(1));
-    if (scene.max_ordinates < 8 || scene.max_ordinates > 256)
-        detail::throw_out_of_range("max_ordinates", scene.max_ordinates, "[8, 256]");
-    for (std::size_t j = 0; j < scene.incidence.size(); ++j)
-        detail::require_closed(("incidence[" + std::to_string(j) + "]").c_str(), scene.incidence[j],
-                               std::nextafter(Real(0), Real(1)), Real(1));
-    detail::require_nonnegative("length_scale", scene.length_scale);
-    if (scene.diffusion_profile) {
-        if (material.slabs.size() != 1)
-            detail::fail_invalid_argument("stratum: a diffusion profile needs a material of one slab, got " +
-                                          std::to_string(material.slabs.size()));
-        detail::require_positive("extinction", material.extinction);
-    }
-
+    detail::require_scene(material, scene);
     Plan<Real> plan;
     plan.request.outputs = scene.outputs;
     plan.request.incidence = scene.incidence;
@@ -234,81 +317,24 @@ PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequ
         plan.solve_seconds = detail::seconds_since(start);
         return {std::move(plan), std::move(s), std::nullopt};
     }
-
     plan.model = Model::layer_solver;
-    const bool angular =
-        includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::transmission | LayerOutput::operators);
-    const bool transmitted =
-        includes(scene.outputs, LayerOutput::transmission | LayerOutput::transmittance | LayerOutput::operators);
-    const bool reflected = !transmitted || scene.diffusion_profile ||
-                           includes(scene.outputs, LayerOutput::subsurface_reflection | LayerOutput::reflectance |
-                                                       LayerOutput::ambient);
-    std::vector<Real> checked =
-        scene.incidence.empty() ? std::vector<Real>{Real(1), Real(0.7), Real(0.4), Real(0.1)} : scene.incidence;
-    if (scene.diffusion_profile && std::find(checked.begin(), checked.end(), Real(1)) == checked.end())
-        checked.push_back(Real(1));  // (the dipole is checked at normal incidence)
-    LayerRequest<Real> level_request;  // mode 0: the checked fluxes and what else the request asks of mode 0
-    const auto mode_zero = LayerOutput::surface_reflection | LayerOutput::ambient;
-    level_request.outputs = (reflected ? LayerOutput::reflectance : LayerOutput{}) |
-                            (transmitted ? LayerOutput::transmittance : LayerOutput{}) |
-                            static_cast<LayerOutput>(static_cast<unsigned>(scene.outputs) & static_cast<unsigned>(mode_zero));
-    level_request.incidence = checked;
-    level_request.tolerance = scene.tolerance;
-
-    // Integrals no finer than the tolerance needs (LayerOptions): the rough faces' hemispherical integrals at 10
-    // nodes from 1e-3 (worst 9e-6, at sigma 0.3, n 2.5), at 12 from 1e-4 (about 5 times less), and their azimuthal
-    // rule at 12 points (~5e-7) from 1e-4. Every level shares this error, which the estimate cannot see: it is
-    // kept 50 to 100 times inside the tolerance.
-    if (scene.tolerance >= Real(1e-4)) {
-        plan.options.hemispherical_nodes = scene.tolerance >= Real(1e-3) ? 10 : 12;
-        plan.options.azimuthal_points = 12;
-    }
-    std::vector<Real> previous, changes;
-    std::optional<detail::PreparedFaces<Real>> faces;
-    std::optional<LayeredSurface<Real>> last;
-    Real estimate = std::numeric_limits<Real>::infinity();
-    for (int m = 4; m <= scene.max_ordinates; m *= 2) {
-        plan.options.ordinates = m;
-        plan.options.modes = angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
-        faces = detail::prepare_faces(material, plan.options, faces ? &*faces : nullptr);
-        last = solve_stack(faces->top, material.slabs, faces->interior, faces->bottom, level_request);
-        plan.ordinates_tried.push_back(m);
-        std::vector<Real> fluxes = detail::checked_fluxes(*last, checked, reflected, transmitted);
-        if (!previous.empty()) {
-            Real change = 0;
-            for (std::size_t i = 0; i < fluxes.size(); ++i) {
-                const Real d = std::fabs(fluxes[i] - previous[i]);
-                if (!(d < std::numeric_limits<Real>::infinity()))
-                    detail::fail_domain_error("stratum: solve_planned: a flux at " + std::to_string(m) +
-                                              " ordinates is not finite");
-                change = std::max(change, d);
-            }
-            changes.push_back(change);
-            estimate = plan_error_estimate(changes);
-            if (estimate <= scene.tolerance) break;
-        }
-        previous = std::move(fluxes);
-    }
+    const detail::Checked<Real> checked(scene);
+    detail::Levels<Real> levels = detail::solve_levels(material, scene, checked, plan);
     plan.planning_seconds = detail::seconds_since(start);
-    plan.estimated_error = estimate;
-    plan.tolerance_met = estimate <= scene.tolerance;
-    plan.reason = "layer solver: " + std::to_string(plan.options.ordinates) + " ordinates, estimated error " +
-                  detail::format_number(double(estimate)) + (plan.tolerance_met ? " <= " : " > (max_ordinates reached) ") +
-                  detail::format_number(double(scene.tolerance));
     std::optional<Dipole<Real>> dipole;
-    if (scene.diffusion_profile) dipole = detail::plan_profile(material, scene, *last, plan);
+    if (scene.diffusion_profile) dipole = detail::plan_profile(material, scene, levels.last, plan);
     const std::string profile =
         !dipole ? std::string()
                 : "; diffusion profile: the dipole, its total reflectance " + detail::format_number(double(plan.profile_error)) +
                       " from the layer's" + (plan.profile_local ? " (local at the scene's length scale: the BRDF suffices)" : "");
-    if (!angular) {
-        plan.request = level_request;
-        plan.modes = last->modes();
+    if (!checked.angular) {
+        plan.request = checked.request;
+        plan.modes = levels.last.modes();
         plan.reason += "; Fourier mode 0 only (no angular output asked)" + profile;
-        return {std::move(plan), std::move(*last), std::move(dipole)};
+        return {std::move(plan), std::move(levels.last), std::move(dipole)};
     }
     const auto solve_start = std::chrono::steady_clock::now();
-    LayeredSurface<Real> s = solve_stack(faces->top, material.slabs, faces->interior, faces->bottom, plan.request);
+    LayeredSurface<Real> s = solve_stack(levels.faces.top, material.slabs, levels.faces.interior, levels.faces.bottom, plan.request);
     plan.solve_seconds = detail::seconds_since(solve_start);
     plan.modes = s.modes();
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
