@@ -48,6 +48,29 @@ void BM_planner_skin(benchmark::State& state) {
 }
 BENCHMARK(BM_planner_skin)->ArgsProduct({{0, 1, 2}, {2, 3}})->Unit(benchmark::kMillisecond);
 
+// The same for red, green and blue (albedos 0.95, 0.9 and Stam's 0.9 at g 0.8, e^-tau 0.5; solve_planned_spectral):
+// compare with BM_planner_skin at the same arguments (issue 12: three wavelengths <= 1.3x one).
+void BM_planner_skin_rgb(benchmark::State& state) {
+    std::vector<stratum::Material<Real>> rgb;
+    for (const Real albedo : {0.95, 0.9, 0.9})
+        rgb.push_back({stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), {stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5)},
+                       {}, stratum::RoughDielectric<Real>(0.3, 1.4, 1.0)});
+    stratum::SceneRequest<Real> scene;
+    const stratum::LayerOutput outputs[] = {stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance,
+                                            stratum::LayerOutput::subsurface_reflection, stratum::LayerOutput::all};
+    scene.outputs = outputs[state.range(0)];
+    scene.incidence = {0.5};
+    scene.tolerance = std::pow(Real(10), -Real(state.range(1)));
+    int ordinates = 0;
+    for (auto _ : state) {
+        const auto planned = stratum::solve_planned_spectral(rgb, scene);
+        ordinates = planned.plan.options.ordinates;
+        benchmark::DoNotOptimize(planned.surfaces[0].reflectance(0.5).subsurface);
+    }
+    state.counters["ordinates"] = ordinates;
+}
+BENCHMARK(BM_planner_skin_rgb)->ArgsProduct({{0, 1, 2}, {2}})->Unit(benchmark::kMillisecond);
+
 // Stam's layer solved for `request` from faces prepared once (PreparedBoundary), M = state.range(0): what a new
 // albedo, g, thickness or wavelength costs. The albedo changes every iteration so that nothing but the faces is reused.
 void solve_from_prepared_faces(benchmark::State& state, const stratum::LayerRequest<Real>& request) {

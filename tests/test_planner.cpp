@@ -196,6 +196,43 @@ TEST_CASE("a diffusion profile under a face into a less dense medium: the exact 
     CHECK(std::isfinite(planned.plan.profile_error));
 }
 
+TEST_CASE("several wavelengths: one plan, the faces prepared once per level, each wavelength's solve as its own") {
+    // Stam's skin in red, green and blue (albedos 0.95, 0.9, 0.7): the worst wavelength sets the ordinates.
+    std::vector<Material<double>> rgb;
+    for (const double albedo : {0.95, 0.9, 0.7}) {
+        Material<double> m = skin();
+        m.slabs = {Slab<double>(albedo, 0.8, std::log(2.0))};
+        rgb.push_back(m);
+    }
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+    scene.incidence = {0.5};
+    scene.tolerance = 3e-3;
+    const auto spectrum = stratum::solve_planned_spectral(rgb, scene);
+    REQUIRE(spectrum.surfaces.size() == 3);
+    int most = 0;
+    for (std::size_t w = 0; w < 3; ++w) {
+        const auto alone = solve_planned(rgb[w], scene);
+        most = std::max(most, alone.plan.options.ordinates);
+        // Each wavelength is its own solve at the common ordinates, bit for bit.
+        LayerRequest<double> fluxes = spectrum.plan.request;
+        const auto direct = solve_stack<double>(rgb[w].top, rgb[w].slabs, rgb[w].interior, rgb[w].bottom,
+                                                with_ordinates(spectrum.plan.options, spectrum.plan.options.ordinates, 1), fluxes);
+        CHECK(spectrum.surfaces[w].reflectance(0.5).subsurface == direct.reflectance(0.5).subsurface);
+        CHECK(spectrum.surfaces[w].transmittance(0.5) == direct.transmittance(0.5));
+    }
+    CHECK(spectrum.plan.options.ordinates == most);  // (the changes are the worst over the wavelengths)
+    CHECK(spectrum.plan.tolerance_met);
+    CHECK(spectrum.plan.estimated_error <= scene.tolerance);
+
+    std::vector<Material<double>> mixed = rgb;
+    mixed[1].top = RoughDielectric<double>(0.2, 1.0, 1.4);
+    CHECK_THROWS_WITH_AS(stratum::solve_planned_spectral(mixed, scene), doctest::Contains("wavelengths[1]"),
+                         std::invalid_argument);
+    CHECK_THROWS_WITH_AS(stratum::solve_planned_spectral(std::vector<Material<double>>{}, scene),
+                         doctest::Contains("no wavelengths"), std::invalid_argument);
+}
+
 TEST_CASE("the plan names what it could not reach, and refuses bad requests by name") {
     SceneRequest<double> scene;
     scene.outputs = LayerOutput::transmittance;

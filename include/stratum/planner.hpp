@@ -115,6 +115,16 @@ struct PlannedLayer {
     std::optional<Dipole<Real>> dipole;  ///< the diffusion profile, when asked for
 };
 
+/// One material at several wavelengths (solve_planned_spectral): one plan for all, a solution per wavelength.
+template <class Real = double>
+struct PlannedSpectrum {
+    /// The estimate is the worst wavelength's, modes the most any wavelength kept, profile_error the largest, and
+    /// profile_local true only when every wavelength's profile is local.
+    Plan<Real> plan;
+    std::vector<LayeredSurface<Real>> surfaces;  ///< per wavelength
+    std::vector<Dipole<Real>> dipoles;           ///< per wavelength, when a diffusion profile was asked for
+};
+
 /// The estimated error at the ordinates of the last level, from the largest changes of the checked fluxes between
 /// levels (changes[i]: from level i to level i + 1, each with twice the ordinates of the one before):
 ///   estimate = 2 max(last change, previous change / 4).
@@ -179,7 +189,7 @@ inline std::string format_number(double x) {
 
 // The dipole of a one-slab material (sigma_a = (1 - albedo) sigma_t, sigma_s' = albedo (1 - g) sigma_t, eta of the top
 // face), its error against the solved layer's reflectance at normal incidence, and whether it is local at the
-// scene's length scale; written into the plan.
+// scene's length scale; folded into the plan's (the largest error; local only if every profile is).
 template <class Real>
 Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& scene, const LayeredSurface<Real>& solved,
                           Plan<Real>& plan) {
@@ -191,9 +201,21 @@ Dipole<Real> plan_profile(const Material<Real>& m, const SceneRequest<Real>& sce
     const Dipole<Real> dipole(slab.one_minus_albedo() * m.extinction, slab.albedo() * (1 - slab.g()) * m.extinction,
                               eta, model);
     const Real entry = 1 - fresnel_dielectric(Real(1), eta);
-    plan.profile_error = std::fabs(entry * dipole.total_reflectance() - solved.reflectance(Real(1)).subsurface);
-    plan.profile_local = scene.length_scale > 0 && dipole.diffuse_mean_free_path() < scene.length_scale / 10;
+    plan.profile_error = std::max(plan.profile_error,
+                                  std::fabs(entry * dipole.total_reflectance() - solved.reflectance(Real(1)).subsurface));
+    plan.profile_local = plan.profile_local && scene.length_scale > 0 &&
+                         dipole.diffuse_mean_free_path() < scene.length_scale / 10;
     return dipole;
+}
+
+// Two boundaries that prepare alike: the same kind, indices, roughness and shadowing, or floor albedo.
+template <class Real>
+bool same_boundary(const Boundary<Real>& a, const Boundary<Real>& b) noexcept {
+    if (a.rough() != b.rough() || a.lambertian() != b.lambertian() || a.eta_above() != b.eta_above() ||
+        a.eta_below() != b.eta_below() || a.floor_albedo() != b.floor_albedo())
+        return false;
+    return !a.rough() || (a.rough_interface()->sigma() == b.rough_interface()->sigma() &&
+                          a.rough_interface()->shadowing() == b.rough_interface()->shadowing());
 }
 
 // The request's checks, in solve_planned's order: tolerance, max_ordinates, incidences, length scale, profile.
@@ -212,6 +234,23 @@ void require_scene(const Material<Real>& material, const SceneRequest<Real>& sce
                                   std::to_string(material.slabs.size()));
         require_positive("extinction", material.extinction);
     }
+}
+
+// The request's checks, in solve_planned's order: tolerance, max_ordinates, incidences, length scale, profile; for
+// several wavelengths also that there is one and that their faces agree.
+template <class Real>
+void require_scene(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene) {
+    if (wavelengths.empty()) fail_invalid_argument("stratum: solve_planned_spectral: no wavelengths");
+    for (std::size_t w = 1; w < wavelengths.size(); ++w) {
+        const Material<Real>& a = wavelengths[0];
+        const Material<Real>& b = wavelengths[w];
+        bool same = same_boundary(a.top, b.top) && same_boundary(a.bottom, b.bottom) && a.interior.size() == b.interior.size();
+        for (std::size_t i = 0; same && i < a.interior.size(); ++i) same = same_boundary(a.interior[i], b.interior[i]);
+        if (!same)
+            fail_invalid_argument("stratum: solve_planned_spectral: the faces of wavelengths[" + std::to_string(w) +
+                                  "] differ from those of wavelengths[0] (faces that vary with wavelength: plan each alone)");
+    }
+    for (const Material<Real>& material : wavelengths) require_scene(material, scene);
 }
 
 // What the levels check: the fluxes the outputs imply, at the scene's incidences (or a default set; with normal
@@ -239,18 +278,18 @@ struct Checked {
     }
 };
 
-// The level search's result: the chosen level's faces and its mode-0 solve.
+// The level search's result: the chosen level's faces and its mode-0 solves, one per wavelength.
 template <class Real>
 struct Levels {
     PreparedFaces<Real> faces;
-    LayeredSurface<Real> last;
+    std::vector<LayeredSurface<Real>> last;
 };
 
 // Solves the levels M = 4, 8, 16, ... until the estimate meets the tolerance or max_ordinates is reached; writes the
 // options, the ordinates tried, the estimate and the first part of the reason into the plan.
 template <class Real>
-Levels<Real> solve_levels(const Material<Real>& material, const SceneRequest<Real>& scene, const Checked<Real>& checked,
-                          Plan<Real>& plan) {
+Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene,
+                          const Checked<Real>& checked, Plan<Real>& plan) {
     // Integrals no finer than the tolerance needs (LayerOptions): the rough faces' hemispherical integrals at 10
     // nodes from 1e-3 (worst 9e-6, at sigma 0.3, n 2.5), at 12 from 1e-4 (about 5 times less), and their azimuthal
     // rule at 12 points (~5e-7) from 1e-4. Every level shares this error, which the estimate cannot see: it is
@@ -261,15 +300,20 @@ Levels<Real> solve_levels(const Material<Real>& material, const SceneRequest<Rea
     }
     std::vector<Real> previous, changes;
     std::optional<PreparedFaces<Real>> faces;
-    std::optional<LayeredSurface<Real>> last;
+    std::vector<LayeredSurface<Real>> last;
     Real estimate = std::numeric_limits<Real>::infinity();
     for (int m = 4; m <= scene.max_ordinates; m *= 2) {
         plan.options.ordinates = m;
         plan.options.modes = checked.angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
-        faces = prepare_faces(material, plan.options, faces ? &*faces : nullptr);
-        last = solve_stack(faces->top, material.slabs, faces->interior, faces->bottom, checked.request);
+        faces = prepare_faces(wavelengths.front(), plan.options, faces ? &*faces : nullptr);
+        last.clear();
+        std::vector<Real> fluxes;
+        for (const Material<Real>& material : wavelengths) {
+            last.push_back(solve_stack(faces->top, material.slabs, faces->interior, faces->bottom, checked.request));
+            const std::vector<Real> f = checked_fluxes(last.back(), checked.incidence, checked.reflected, checked.transmitted);
+            fluxes.insert(fluxes.end(), f.begin(), f.end());
+        }
         plan.ordinates_tried.push_back(m);
-        std::vector<Real> fluxes = checked_fluxes(*last, checked.incidence, checked.reflected, checked.transmitted);
         if (!previous.empty()) {
             Real change = 0;
             for (std::size_t i = 0; i < fluxes.size(); ++i) {
@@ -289,10 +333,13 @@ Levels<Real> solve_levels(const Material<Real>& material, const SceneRequest<Rea
     plan.reason = "layer solver: " + std::to_string(plan.options.ordinates) + " ordinates, estimated error " +
                   format_number(double(estimate)) + (plan.tolerance_met ? " <= " : " > (max_ordinates reached) ") +
                   format_number(double(scene.tolerance));
-    return {std::move(*faces), std::move(*last)};
+    return {std::move(*faces), std::move(last)};
 }
 
 }  // namespace detail
+
+template <class Real>
+PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene);
 
 /// Plans and solves: the closed form for the top face's reflection alone; otherwise the layer solver at the fewest
 /// ordinates (8, 16, 32, ... up to request.max_ordinates) whose estimated error in the checked fluxes is within
@@ -303,43 +350,63 @@ Levels<Real> solve_levels(const Material<Real>& material, const SceneRequest<Rea
 /// finite (the solver's contract is that they are).
 template <class Real>
 PlannedLayer<Real> solve_planned(const Material<Real>& material, const SceneRequest<Real>& scene) {
+    PlannedSpectrum<Real> one = solve_planned_spectral(std::vector<Material<Real>>{material}, scene);
+    std::optional<Dipole<Real>> dipole;
+    if (!one.dipoles.empty()) dipole = one.dipoles.front();
+    return {std::move(one.plan), std::move(one.surfaces.front()), std::move(dipole)};
+}
+
+/// One material at several wavelengths (RGB, or 16 to 64 spectral samples): the faces the same at every wavelength,
+/// the slabs (and extinction) per wavelength. One plan for all, as solve_planned's: each level prepares the faces
+/// once and solves every wavelength's mode 0 from them, the estimate is the largest change over all wavelengths'
+/// fluxes, and the final solve runs per wavelength from the chosen level's faces. Throws as solve_planned, and
+/// std::invalid_argument for no wavelengths or faces that differ between them.
+template <class Real>
+PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene) {
     const auto start = std::chrono::steady_clock::now();
-    detail::require_scene(material, scene);
-    Plan<Real> plan;
+    detail::require_scene(wavelengths, scene);
+    PlannedSpectrum<Real> out;
+    Plan<Real>& plan = out.plan;
     plan.request.outputs = scene.outputs;
     plan.request.incidence = scene.incidence;
     plan.request.tolerance = scene.tolerance;
     if (scene.outputs == LayerOutput::surface_reflection && !scene.diffusion_profile) {
         plan.options.ordinates = 1;
         plan.reason = "closed form: the top face's own reflection needs no solve";
-        LayeredSurface<Real> s = solve_stack(material.top, material.slabs, material.interior, material.bottom,
-                                             plan.options, plan.request);
+        for (const Material<Real>& m : wavelengths)
+            out.surfaces.push_back(solve_stack(m.top, m.slabs, m.interior, m.bottom, plan.options, plan.request));
         plan.solve_seconds = detail::seconds_since(start);
-        return {std::move(plan), std::move(s), std::nullopt};
+        return out;
     }
     plan.model = Model::layer_solver;
     const detail::Checked<Real> checked(scene);
-    detail::Levels<Real> levels = detail::solve_levels(material, scene, checked, plan);
+    detail::Levels<Real> levels = detail::solve_levels(wavelengths, scene, checked, plan);
     plan.planning_seconds = detail::seconds_since(start);
-    std::optional<Dipole<Real>> dipole;
-    if (scene.diffusion_profile) dipole = detail::plan_profile(material, scene, levels.last, plan);
+    plan.profile_local = scene.diffusion_profile;  // (then and-ed over the wavelengths)
+    if (scene.diffusion_profile)
+        for (std::size_t w = 0; w < wavelengths.size(); ++w)
+            out.dipoles.push_back(detail::plan_profile(wavelengths[w], scene, levels.last[w], plan));
     const std::string profile =
-        !dipole ? std::string()
-                : "; diffusion profile: the dipole, its total reflectance " + detail::format_number(double(plan.profile_error)) +
-                      " from the layer's" + (plan.profile_local ? " (local at the scene's length scale: the BRDF suffices)" : "");
+        !scene.diffusion_profile
+            ? std::string()
+            : "; diffusion profile: the dipole, its total reflectance " + detail::format_number(double(plan.profile_error)) +
+                  " from the layer's" + (plan.profile_local ? " (local at the scene's length scale: the BRDF suffices)" : "");
     if (!checked.angular) {
         plan.request = checked.request;
-        plan.modes = levels.last.modes();
+        plan.modes = 1;
         plan.reason += "; Fourier mode 0 only (no angular output asked)" + profile;
-        return {std::move(plan), std::move(levels.last), std::move(dipole)};
+        out.surfaces = std::move(levels.last);
+        return out;
     }
     const auto solve_start = std::chrono::steady_clock::now();
-    LayeredSurface<Real> s = solve_stack(levels.faces.top, material.slabs, levels.faces.interior, levels.faces.bottom, plan.request);
+    for (const Material<Real>& m : wavelengths) {
+        out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
+        plan.modes = std::max(plan.modes, out.surfaces.back().modes());
+    }
     plan.solve_seconds = detail::seconds_since(solve_start);
-    plan.modes = s.modes();
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
                    " Fourier modes (cut at the tolerance)" + profile;
-    return {std::move(plan), std::move(s), std::move(dipole)};
+    return out;
 }
 
 }  // namespace stratum
