@@ -127,6 +127,45 @@ TEST_CASE("angular outputs: the plan's solve, modes cut at the tolerance") {
     CHECK(planned.surface.transmittance(0.8) == 0);  // not asked
 }
 
+TEST_CASE("angular outputs: the estimate of their error against a finer solve") {
+    // The probes of Plan::angular_error, recomputed against the same request at 96 ordinates (relative to the largest
+    // probe value of the reference).
+    const auto probe_error = [](const stratum::LayeredSurface<double>& a, const stratum::LayeredSurface<double>& b,
+                                double mu_i, bool transmission) {
+        double worst = 0, scale = 0;
+        const Vec3<double> wi{std::sqrt(1 - mu_i * mu_i), 0.0, mu_i};
+        for (const double mu_o : {0.2, 0.5, 0.8, 1.0})
+            for (const double phi : {0.0, stratum_test::pi / 2, stratum_test::pi}) {
+                const double s = std::sqrt(1 - mu_o * mu_o);
+                const Vec3<double> up{s * std::cos(phi), s * std::sin(phi), mu_o}, down{up.x, up.y, -mu_o};
+                worst = std::max(worst, mu_i * mu_o * std::fabs(a.subsurface_brdf(wi, up) - b.subsurface_brdf(wi, up)));
+                scale = std::max(scale, mu_i * mu_o * b.subsurface_brdf(wi, up));
+                if (!transmission) continue;
+                worst = std::max(worst, mu_i * mu_o * std::fabs(a.btdf(wi, down) - b.btdf(wi, down)));
+                scale = std::max(scale, mu_i * mu_o * b.btdf(wi, down));
+            }
+        return worst / scale;
+    };
+    const Material<double> smooth_slab{SmoothDielectric<double>(1.0, 1.4), {Slab<double>(0.9, 0.8, 1.0)}, {},
+                                       SmoothDielectric<double>(1.4, 1.0)};
+    for (const Material<double>& mat : {skin(), smooth_slab}) {
+        SceneRequest<double> scene;
+        scene.outputs = LayerOutput::subsurface_reflection | LayerOutput::transmission;
+        scene.incidence = {0.8};
+        scene.tolerance = 1e-2;
+        const auto planned = solve_planned(mat, scene);
+        LayerOptions fine;
+        fine.ordinates = 96;
+        LayerRequest<double> request = planned.plan.request;
+        request.tolerance = 0;
+        const auto reference = solve_stack<double>(mat.top, mat.slabs, mat.interior, mat.bottom, fine, request);
+        const double truth = probe_error(planned.surface, reference, 0.8, true);
+        INFO(planned.plan.reason << "; true angular error " << truth);
+        CHECK(planned.plan.angular_error > 0);
+        CHECK(truth <= planned.plan.angular_error);
+    }
+}
+
 TEST_CASE("stacks: the interior faces are prepared at every level too") {
     // A rough coat (n 1.5) on a slab of index 1.4 over a rough base into air: three different rough faces.
     const Material<double> stack{RoughDielectric<double>(0.2, 1.0, 1.5),

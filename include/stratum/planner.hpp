@@ -34,12 +34,15 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "dipole.hpp"
 #include "fresnel.hpp"
 #include "layer.hpp"
+#include "vec3.hpp"
 
 namespace stratum {
 
@@ -97,7 +100,13 @@ struct Plan {
     std::vector<int> ordinates_tried;  ///< the mode-0 solves that chose the ordinates, in order
     int modes = 0;                ///< Fourier modes of the final solve (1 for fluxes and ambient alone)
     double planning_seconds = 0;  ///< measured: the mode-0 solves that chose the ordinates
-    double solve_seconds = 0;     ///< measured: the final solve (0 when the last mode-0 solve is the answer)
+    double solve_seconds = 0;     ///< measured: the final solve and the angular estimate's (0 for fluxes alone)
+    /// With angular outputs: the estimated largest error of f |wi.z| |wo.z| of the subsurface BRDF and the BTDF, as
+    /// asked, at probe directions (the checked incidences; exit cosines 0.2, 0.5, 0.8 and 1 at azimuths 0, pi/2 and pi
+    /// from the plane of incidence), relative to the largest such value: twice the change from the previous level's
+    /// ordinates, whose faces the levels prepared already (that solve costs about an eighth of the final one). Not
+    /// held to the tolerance (which bounds the fluxes): a renderer reads it to decide. 0 otherwise.
+    Real angular_error = 0;
     /// With a diffusion profile: |F_t(1) R_d,total - R(1)|, the dipole's total diffuse reflectance at normal incidence
     /// against the layer solver's (fractions of the incident flux; see the file comment). 0 otherwise.
     Real profile_error = 0;
@@ -278,10 +287,40 @@ struct Checked {
     }
 };
 
+// The largest difference of f |wi.z| |wo.z| between two solutions of the angular outputs asked (subsurface BRDF,
+// BTDF), at the checked incidences and exit cosines 0.2, 0.5, 0.8, 1 at azimuths 0, pi/2 and pi; and the largest
+// value of a there.
+template <class Real>
+std::pair<Real, Real> angular_change(const LayeredSurface<Real>& a, const LayeredSurface<Real>& b,
+                                     const std::vector<Real>& incidence, LayerOutput outputs) {
+    const bool reflection = includes(outputs, LayerOutput::subsurface_reflection | LayerOutput::operators);
+    const bool transmission = includes(outputs, LayerOutput::transmission | LayerOutput::operators);
+    Real change = 0, scale = 0;
+    for (const Real mu_i : incidence) {
+        const Vec3<Real> wi{std::sqrt((1 - mu_i) * (1 + mu_i)), Real(0), mu_i};
+        for (const Real mu_o : {Real(0.2), Real(0.5), Real(0.8), Real(1)})
+            for (const Real phi : {Real(0), detail::pi_v<Real> / 2, detail::pi_v<Real>}) {
+                const Real s = std::sqrt((1 - mu_o) * (1 + mu_o));
+                const Vec3<Real> up{s * std::cos(phi), s * std::sin(phi), mu_o}, down{up.x, up.y, -mu_o};
+                const Real w = mu_i * mu_o;
+                if (reflection) {
+                    change = std::max(change, w * std::fabs(a.subsurface_brdf(wi, up) - b.subsurface_brdf(wi, up)));
+                    scale = std::max(scale, w * a.subsurface_brdf(wi, up));
+                }
+                if (transmission) {
+                    change = std::max(change, w * std::fabs(a.btdf(wi, down) - b.btdf(wi, down)));
+                    scale = std::max(scale, w * a.btdf(wi, down));
+                }
+            }
+    }
+    return {change, scale};
+}
+
 // The level search's result: the chosen level's faces and its mode-0 solves, one per wavelength.
 template <class Real>
 struct Levels {
     PreparedFaces<Real> faces;
+    std::optional<PreparedFaces<Real>> before;  // the previous level's faces (angular outputs: every mode prepared)
     std::vector<LayeredSurface<Real>> last;
 };
 
@@ -299,12 +338,13 @@ Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const 
         plan.options.azimuthal_points = 12;
     }
     std::vector<Real> previous, changes;
-    std::optional<PreparedFaces<Real>> faces;
+    std::optional<PreparedFaces<Real>> faces, before;
     std::vector<LayeredSurface<Real>> last;
     Real estimate = std::numeric_limits<Real>::infinity();
     for (int m = 4; m <= scene.max_ordinates; m *= 2) {
         plan.options.ordinates = m;
         plan.options.modes = checked.angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
+        if (faces) before = *faces;
         faces = prepare_faces(wavelengths.front(), plan.options, faces ? &*faces : nullptr);
         last.clear();
         std::vector<Real> fluxes;
@@ -333,7 +373,7 @@ Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const 
     plan.reason = "layer solver: " + std::to_string(plan.options.ordinates) + " ordinates, estimated error " +
                   format_number(double(estimate)) + (plan.tolerance_met ? " <= " : " > (max_ordinates reached) ") +
                   format_number(double(scene.tolerance));
-    return {std::move(*faces), std::move(last)};
+    return {std::move(*faces), std::move(before), std::move(last)};
 }
 
 }  // namespace detail
@@ -403,9 +443,18 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
         out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
         plan.modes = std::max(plan.modes, out.surfaces.back().modes());
     }
+    // The angular estimate: the same request at the previous level's ordinates (its faces are prepared), compared.
+    for (std::size_t w = 0; levels.before && w < wavelengths.size(); ++w) {
+        const Material<Real>& m = wavelengths[w];
+        const LayeredSurface<Real> coarse =
+            solve_stack(levels.before->top, m.slabs, levels.before->interior, levels.before->bottom, plan.request);
+        const auto [change, scale] = detail::angular_change(out.surfaces[w], coarse, checked.incidence, scene.outputs);
+        if (scale > 0) plan.angular_error = std::max(plan.angular_error, 2 * change / scale);
+    }
     plan.solve_seconds = detail::seconds_since(solve_start);
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
-                   " Fourier modes (cut at the tolerance)" + profile;
+                   " Fourier modes (cut at the tolerance), angular error about " +
+                   detail::format_number(double(plan.angular_error)) + " of the largest probe" + profile;
     return out;
 }
 
