@@ -687,7 +687,7 @@ void planner() {
             }
 
     std::printf("\n## Planner: cost against the full solve\n\nstratum::solve_planned (its mode-0 levels and, for angular "
-                "outputs, the final solve) against solve_layer at the ordinates it chose with every output and all 2M "
+                "outputs, the final solve and the estimate of its angular error) against solve_layer at the ordinates it chose with every output and all 2M "
                 "modes, from nothing (processor time, best of 3). Stam's skin layer and a smooth-faced slab (n 1.4 in air, "
                 "albedo 0.9, g 0.8, tau 1), incidence mu0 = 0.5.\n\n| material | outputs | tolerance | ordinates | modes "
                 "| estimated error | plan (ms) | full solve (ms) | ratio |\n|---|---|---|---|---|---|---|---|---|\n");

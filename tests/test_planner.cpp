@@ -163,6 +163,8 @@ TEST_CASE("angular outputs: the estimate of their error against a finer solve") 
         INFO(planned.plan.reason << "; true angular error " << truth);
         CHECK(planned.plan.angular_error > 0);
         CHECK(truth <= planned.plan.angular_error);
+        scene.estimate_angular_error = false;
+        CHECK(solve_planned(mat, scene).plan.angular_error == 0);
     }
 }
 

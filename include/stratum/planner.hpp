@@ -71,6 +71,10 @@ struct SceneRequest {
     /// The largest number of ordinates the planner may use, 8 to 256 (the levels are 4 times powers of 2: 100 stops
     /// at 64); past it the plan says the tolerance is not met.
     int max_ordinates = 64;
+    /// With angular outputs, estimate their error (Plan::angular_error): one more solve at half the ordinates and a
+    /// comparison at probe directions, about a tenth of the plan for Stam's layer but twice a smooth slab's 0.24 ms
+    /// solve at 8 ordinates (docs/accuracy.md). Off: Plan::angular_error stays 0.
+    bool estimate_angular_error = true;
     /// Also the diffusion profile R_d(r) for a BSSRDF (the dipole, PlannedLayer::dipole): needs one slab and
     /// Material::extinction.
     bool diffusion_profile = false;
@@ -288,30 +292,28 @@ struct Checked {
 };
 
 // The largest difference of f |wi.z| |wo.z| between two solutions of the angular outputs asked (subsurface BRDF,
-// BTDF), at the checked incidences and exit cosines 0.2, 0.5, 0.8, 1 at azimuths 0, pi/2 and pi; and the largest
-// value of a there.
+// BTDF), at the checked incidences, exit cosines 0.2, 0.5, 0.8, 1 and azimuths dphi = 0, pi/2, pi; and the largest
+// value of a there. From their Fourier series (LayeredSurface::fourier_coefficients: one field per incidence, no
+// azimuthal integral), not from brdf/btdf, which cost tens of microseconds each.
 template <class Real>
 std::pair<Real, Real> angular_change(const LayeredSurface<Real>& a, const LayeredSurface<Real>& b,
                                      const std::vector<Real>& incidence, LayerOutput outputs) {
-    const bool reflection = includes(outputs, LayerOutput::subsurface_reflection | LayerOutput::operators);
-    const bool transmission = includes(outputs, LayerOutput::transmission | LayerOutput::operators);
+    const std::vector<Real> exit{Real(0.2), Real(0.5), Real(0.8), Real(1)};
     Real change = 0, scale = 0;
-    for (const Real mu_i : incidence) {
-        const Vec3<Real> wi{std::sqrt((1 - mu_i) * (1 + mu_i)), Real(0), mu_i};
-        for (const Real mu_o : {Real(0.2), Real(0.5), Real(0.8), Real(1)})
-            for (const Real phi : {Real(0), detail::pi_v<Real> / 2, detail::pi_v<Real>}) {
-                const Real s = std::sqrt((1 - mu_o) * (1 + mu_o));
-                const Vec3<Real> up{s * std::cos(phi), s * std::sin(phi), mu_o}, down{up.x, up.y, -mu_o};
-                const Real w = mu_i * mu_o;
-                if (reflection) {
-                    change = std::max(change, w * std::fabs(a.subsurface_brdf(wi, up) - b.subsurface_brdf(wi, up)));
-                    scale = std::max(scale, w * a.subsurface_brdf(wi, up));
+    for (const LayerOutput which : {LayerOutput::subsurface_reflection, LayerOutput::transmission}) {
+        if (!includes(outputs, which | LayerOutput::operators)) continue;
+        const std::vector<Real> ca = a.fourier_coefficients(which, incidence, exit);
+        const std::vector<Real> cb = b.fourier_coefficients(which, incidence, exit);
+        const std::size_t ka = static_cast<std::size_t>(a.modes()), kb = static_cast<std::size_t>(b.modes());
+        for (std::size_t i = 0; i < incidence.size(); ++i)
+            for (std::size_t o = 0; o < exit.size(); ++o)
+                for (const Real dphi : {Real(0), pi_v<Real> / 2, pi_v<Real>}) {
+                    Real fa = 0, fb = 0;  // f |wo.z| = sum_k a_k cos(k dphi)
+                    for (std::size_t k = 0; k < ka; ++k) fa += ca[(i * exit.size() + o) * ka + k] * std::cos(Real(k) * dphi);
+                    for (std::size_t k = 0; k < kb; ++k) fb += cb[(i * exit.size() + o) * kb + k] * std::cos(Real(k) * dphi);
+                    change = std::max(change, incidence[i] * std::fabs(fa - fb));
+                    scale = std::max(scale, incidence[i] * fa);
                 }
-                if (transmission) {
-                    change = std::max(change, w * std::fabs(a.btdf(wi, down) - b.btdf(wi, down)));
-                    scale = std::max(scale, w * a.btdf(wi, down));
-                }
-            }
     }
     return {change, scale};
 }
@@ -444,7 +446,7 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
         plan.modes = std::max(plan.modes, out.surfaces.back().modes());
     }
     // The angular estimate: the same request at the previous level's ordinates (its faces are prepared), compared.
-    for (std::size_t w = 0; levels.before && w < wavelengths.size(); ++w) {
+    for (std::size_t w = 0; scene.estimate_angular_error && levels.before && w < wavelengths.size(); ++w) {
         const Material<Real>& m = wavelengths[w];
         const LayeredSurface<Real> coarse =
             solve_stack(levels.before->top, m.slabs, levels.before->interior, levels.before->bottom, plan.request);
@@ -453,8 +455,11 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
     }
     plan.solve_seconds = detail::seconds_since(solve_start);
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
-                   " Fourier modes (cut at the tolerance), angular error about " +
-                   detail::format_number(double(plan.angular_error)) + " of the largest probe" + profile;
+                   " Fourier modes (cut at the tolerance)" +
+                   (scene.estimate_angular_error ? ", angular error about " + detail::format_number(double(plan.angular_error)) +
+                                                       " of the largest probe"
+                                                 : std::string()) +
+                   profile;
     return out;
 }
 
