@@ -1,5 +1,5 @@
-// Built with -fno-exceptions (tests/CMakeLists.txt): the pointwise modules and the layer solver compile and
-// evaluate without exceptions, and a rejected parameter reaches the handler set with set_invalid_parameter_handler
+// Built with -fno-exceptions (tests/CMakeLists.txt): the pointwise modules, the layer solver and the planner compile
+// and evaluate without exceptions, and a rejected parameter reaches the handler set with set_invalid_parameter_handler
 // instead of a throw. The handler here ends the program with status 0 itself (the library would abort after
 // a handler that returns); the CTest test passes when the handler's line is printed.
 #include <stratum/dipole.hpp>
@@ -8,6 +8,7 @@
 #include <stratum/interface.hpp>
 #include <stratum/lambert_w.hpp>
 #include <stratum/layer.hpp>
+#include <stratum/planner.hpp>
 
 #include <cstdio>
 #include <cstdlib>
@@ -31,6 +32,13 @@ int main() {
     const auto layer = stratum::solve_layer(stratum::Slab<double>(0.9, 0.8, 1.0), face,
                                             stratum::RoughDielectric<double>(0.3, 1.4, 1.0), options);
     std::printf("layer reflectance %.17g\n", layer.reflectance(0.5).total());
+    stratum::SceneRequest<double> scene;
+    scene.outputs = stratum::LayerOutput::reflectance;
+    scene.tolerance = 1e-2;
+    const stratum::Material<double> material{face, {stratum::Slab<double>(0.9, 0.8, 1.0)}, {},
+                                             stratum::RoughDielectric<double>(0.3, 1.4, 1.0)};
+    const auto planned = stratum::solve_planned(material, scene);
+    std::printf("planned: %s\n", planned.plan.reason.c_str());
     stratum::set_invalid_parameter_handler(report);
     const stratum::HenyeyGreenstein<double> bad(1.5);  // rejected: the handler runs
     std::printf("not reached: %g\n", bad.g());
