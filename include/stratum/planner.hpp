@@ -12,19 +12,20 @@
 // reflectance and the transmittance, each where asked) at the scene's incidences (SceneRequest::incidence; when
 // none are given, at mu = 1, 0.7, 0.4 and 0.1). Each level solves mode 0 alone (the fluxes need no other; for
 // angular outputs the rough faces are prepared with every mode at each level, so that the chosen level's faces
-// serve the final solve), and the
-// error at M is estimated from the changes between levels (plan_error_estimate). Its reliability is measured, not
-// assumed: tests/test_planner.cpp checks on random materials that it bounds the true error (against M = 128) in at
-// least 95% of them, and docs/accuracy.md reports a larger sweep. Angular outputs (BRDF, BTDF, the layer's operators)
-// are then solved at that M with their Fourier modes cut at the same tolerance relative to mode 0
-// (LayerRequest::tolerance); their error is not estimated separately.
+// serve the final solve), and the error at M is estimated from the changes between levels (plan_error_estimate).
+// Its reliability is measured, not assumed: tests/test_planner.cpp checks on random materials that it bounds the
+// true error (against M = 128) in at least 95% of them, and docs/accuracy.md reports a larger sweep. Angular
+// outputs (BRDF, BTDF, the layer's operators) are then solved at that M with their Fourier modes cut at the same
+// tolerance relative to mode 0 (LayerRequest::tolerance); their error is estimated apart and reported, not held to
+// the tolerance (Plan::angular_error).
 //
 // The diffusion profile. A renderer's BSSRDF needs the radial profile R_d(r), which only the dipole gives
 // (dipole.hpp: a half-space, diffusion, similarity). Asked for (SceneRequest::diffusion_profile), the plan builds it
 // from the slab (albedo, g and Material::extinction) and estimates its error as that of its integral: the dipole's
 // total diffuse reflectance at normal incidence, F_t(1) R_d,total, against the layer solver's subsurface
 // reflectance R(1) of the same material at the chosen ordinates (within 1.6% of R(1) for reduced albedos of 0.99 and
-// above, tens of percent at 0.5: docs/accuracy.md). With the scene's length scale it also says whether the profile matters at all.
+// above, tens of percent at 0.5: docs/accuracy.md). With the scene's length scale it also says whether the profile
+// matters at all.
 #pragma once
 
 #include <algorithm>
