@@ -168,6 +168,37 @@ TEST_CASE("angular outputs: the estimate of their error against a finer solve") 
     }
 }
 
+TEST_CASE("an angular tolerance doubles the ordinates until the angular estimate meets it") {
+    // The smooth slab whose fluxes meet 1e-2 at 8 ordinates while its BTDF is 0.24 off (previous test case).
+    const Material<double> smooth_slab{SmoothDielectric<double>(1.0, 1.4), {Slab<double>(0.9, 0.8, 1.0)}, {},
+                                       SmoothDielectric<double>(1.4, 1.0)};
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::subsurface_reflection | LayerOutput::transmission;
+    scene.incidence = std::vector<double>(1, 0.8);
+    scene.tolerance = 1e-2;
+    scene.angular_tolerance = 0.05;
+    const auto planned = solve_planned(smooth_slab, scene);
+    INFO(planned.plan.reason);
+    CHECK(planned.plan.options.ordinates > 8);
+    CHECK(planned.plan.angular_tolerance_met);
+    CHECK(planned.plan.angular_error <= 0.05);
+    CHECK(planned.plan.ordinates_tried.back() == planned.plan.options.ordinates);
+    // The same request solved plainly at the final ordinates (the plan's faces were prepared from the levels).
+    const auto direct = solve_stack<double>(smooth_slab.top, smooth_slab.slabs, smooth_slab.interior, smooth_slab.bottom,
+                                            with_ordinates(planned.plan.options, planned.plan.options.ordinates), planned.plan.request);
+    const Vec3<double> wi{0.6, 0.0, 0.8}, wo{0.0, 0.6, -0.8};
+    CHECK(planned.surface.btdf(wi, wo) == doctest::Approx(direct.btdf(wi, wo)).epsilon(1e-12));
+    // Not met within max_ordinates: said so.
+    scene.angular_tolerance = 1e-9;
+    scene.max_ordinates = 16;
+    const auto capped = solve_planned(smooth_slab, scene);
+    CHECK_FALSE(capped.plan.angular_tolerance_met);
+    CHECK(capped.plan.options.ordinates == 16);
+    CHECK(capped.plan.reason.find("angular tolerance not met") != std::string::npos);
+    scene.angular_tolerance = 1.0;
+    CHECK_THROWS_WITH_AS(solve_planned(smooth_slab, scene), doctest::Contains("angular_tolerance"), std::invalid_argument);
+}
+
 TEST_CASE("stacks: the interior faces are prepared at every level too") {
     // A rough coat (n 1.5) on a slab of index 1.4 over a rough base into air: three different rough faces.
     const Material<double> stack{RoughDielectric<double>(0.2, 1.0, 1.5),

@@ -76,6 +76,10 @@ struct SceneRequest {
     /// comparison at probe directions, about a tenth of the plan for Stam's layer but twice a smooth slab's 0.24 ms
     /// solve at 8 ordinates (docs/accuracy.md). Off: Plan::angular_error stays 0.
     bool estimate_angular_error = true;
+    /// With angular outputs, > 0: also double the ordinates (up to max_ordinates) until Plan::angular_error is within
+    /// this (relative to the largest probe value; [0, 1)); each doubling one more solve with every mode. 0: the
+    /// ordinates the fluxes need. Implies estimate_angular_error.
+    Real angular_tolerance = 0;
     /// Also the diffusion profile R_d(r) for a BSSRDF (the dipole, PlannedLayer::dipole): needs one slab and
     /// Material::extinction.
     bool diffusion_profile = false;
@@ -119,6 +123,8 @@ struct Plan {
     /// of the length scale, so the dipole's sampling density (dipole.hpp) puts all but 11 e^-10 = 5e-4 of it within
     /// the scene's resolution: subsurface transport is local there, and the layer's BRDF answers it without a BSSRDF.
     bool profile_local = false;
+    /// With SceneRequest::angular_tolerance: whether angular_error met it within max_ordinates (true otherwise).
+    bool angular_tolerance_met = true;
     std::string reason;           ///< one line: why this model and these settings
 };
 
@@ -242,6 +248,7 @@ void require_scene(const Material<Real>& material, const SceneRequest<Real>& sce
         require_closed(("incidence[" + std::to_string(j) + "]").c_str(), scene.incidence[j],
                        std::nextafter(Real(0), Real(1)), Real(1));
     require_nonnegative("length_scale", scene.length_scale);
+    require_closed("angular_tolerance", scene.angular_tolerance, Real(0), std::nextafter(Real(1), Real(0)));
     if (scene.diffusion_profile) {
         if (material.slabs.size() != 1)
             fail_invalid_argument("stratum: a diffusion profile needs a material of one slab, got " +
@@ -446,20 +453,43 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
         out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
         plan.modes = std::max(plan.modes, out.surfaces.back().modes());
     }
-    // The angular estimate: the same request at the previous level's ordinates (its faces are prepared), compared.
-    for (std::size_t w = 0; scene.estimate_angular_error && levels.before && w < wavelengths.size(); ++w) {
+    // The angular estimate: the same request at the previous level's ordinates (its faces are prepared), compared;
+    // with an angular tolerance, the ordinates doubled (faces prepared from the last) until the estimate meets it.
+    const bool estimate = scene.estimate_angular_error || scene.angular_tolerance > 0;
+    const int flux_ordinates = plan.options.ordinates;
+    std::vector<LayeredSurface<Real>> coarse;
+    for (std::size_t w = 0; estimate && levels.before && w < wavelengths.size(); ++w) {
         const Material<Real>& m = wavelengths[w];
-        const LayeredSurface<Real> coarse =
-            solve_stack(levels.before->top, m.slabs, levels.before->interior, levels.before->bottom, plan.request);
-        const auto [change, scale] = detail::angular_change(out.surfaces[w], coarse, checked.incidence, scene.outputs);
-        if (scale > 0) plan.angular_error = std::max(plan.angular_error, 2 * change / scale);
+        coarse.push_back(solve_stack(levels.before->top, m.slabs, levels.before->interior, levels.before->bottom, plan.request));
+    }
+    while (estimate && !coarse.empty()) {
+        plan.angular_error = 0;
+        for (std::size_t w = 0; w < wavelengths.size(); ++w) {
+            const auto [change, scale] = detail::angular_change(out.surfaces[w], coarse[w], checked.incidence, scene.outputs);
+            if (scale > 0) plan.angular_error = std::max(plan.angular_error, 2 * change / scale);
+        }
+        plan.angular_tolerance_met = !(scene.angular_tolerance > 0) || plan.angular_error <= scene.angular_tolerance;
+        if (plan.angular_tolerance_met || 2 * plan.options.ordinates > scene.max_ordinates) break;
+        plan.options.ordinates *= 2;
+        plan.ordinates_tried.push_back(plan.options.ordinates);
+        levels.faces = detail::prepare_faces(wavelengths.front(), plan.options, &levels.faces);
+        coarse = std::move(out.surfaces);
+        out.surfaces.clear();
+        for (const Material<Real>& m : wavelengths) {
+            out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
+            plan.modes = std::max(plan.modes, out.surfaces.back().modes());
+        }
     }
     plan.solve_seconds = detail::seconds_since(solve_start);
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
                    " Fourier modes (cut at the tolerance)" +
-                   (scene.estimate_angular_error ? ", angular error about " + detail::format_number(double(plan.angular_error)) +
-                                                       " of the largest probe"
-                                                 : std::string()) +
+                   (estimate ? ", angular error about " + detail::format_number(double(plan.angular_error)) +
+                                   " of the largest probe" +
+                                   (plan.angular_tolerance_met ? "" : " (angular tolerance not met at max_ordinates)")
+                             : std::string()) +
+                   (plan.options.ordinates > flux_ordinates
+                        ? "; " + std::to_string(plan.options.ordinates) + " ordinates for the angular tolerance"
+                        : std::string()) +
                    profile;
     return out;
 }
