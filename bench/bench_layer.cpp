@@ -25,13 +25,14 @@ void BM_layer_solve_full(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_solve_full)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond);
 
-// The planner (planner.hpp) on Stam's layer at mu0 = 0.5: outputs state.range(0) (0: fluxes, 1: subsurface reflection,
-// 2: all) at tolerance 10^-state.range(1), from nothing. It chooses 32 ordinates at 1e-2 and 64 at 1e-3: compare with
-// BM_layer_solve_full at those (docs/accuracy.md, "Planner: cost against the full solve").
-void BM_planner_skin(benchmark::State& state) {
-    const stratum::Material<Real> skin{stratum::RoughDielectric<Real>(0.3, 1.0, 1.4),
-                                       {stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5)}, {},
-                                       stratum::RoughDielectric<Real>(0.3, 1.4, 1.0)};
+// The planner (planner.hpp) on Stam's layer at mu0 = 0.5, one material per albedo (with g 0.8, e^-tau 0.5): outputs
+// state.range(0) (0: fluxes, 1: subsurface reflection, 2: all) at tolerance 10^-state.range(1), from nothing.
+void plan_skin(benchmark::State& state, const std::vector<Real>& albedos) {
+    std::vector<stratum::Material<Real>> materials;
+    for (const Real albedo : albedos)
+        materials.push_back({stratum::RoughDielectric<Real>(0.3, 1.0, 1.4),
+                             {stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5)}, {},
+                             stratum::RoughDielectric<Real>(0.3, 1.4, 1.0)});
     stratum::SceneRequest<Real> scene;
     const stratum::LayerOutput outputs[] = {stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance,
                                             stratum::LayerOutput::subsurface_reflection, stratum::LayerOutput::all};
@@ -40,35 +41,27 @@ void BM_planner_skin(benchmark::State& state) {
     scene.tolerance = std::pow(Real(10), -Real(state.range(1)));
     int ordinates = 0;
     for (auto _ : state) {
-        const auto planned = stratum::solve_planned(skin, scene);
-        ordinates = planned.plan.options.ordinates;
-        benchmark::DoNotOptimize(planned.surface.reflectance(0.5).subsurface);
+        if (materials.size() == 1) {
+            const auto one = stratum::solve_planned(materials.front(), scene);
+            ordinates = one.plan.options.ordinates;
+            benchmark::DoNotOptimize(one.surface.reflectance(0.5).subsurface);
+        } else {
+            const auto all = stratum::solve_planned_spectral(materials, scene);
+            ordinates = all.plan.options.ordinates;
+            benchmark::DoNotOptimize(all.surfaces[0].reflectance(0.5).subsurface);
+        }
     }
     state.counters["ordinates"] = ordinates;
 }
+
+// Stam's layer (albedo 0.9). It chooses 32 ordinates at 1e-2 and 64 at 1e-3: compare with BM_layer_solve_full at
+// those (docs/accuracy.md, "Planner: cost against the full solve").
+void BM_planner_skin(benchmark::State& state) { plan_skin(state, {0.9}); }
 BENCHMARK(BM_planner_skin)->ArgsProduct({{0, 1, 2}, {2, 3}})->Unit(benchmark::kMillisecond);
 
-// The same for red, green and blue (albedos 0.95, 0.9 and Stam's 0.9 at g 0.8, e^-tau 0.5; solve_planned_spectral):
-// compare with BM_planner_skin at the same arguments (issue 12: three wavelengths <= 1.3x one).
-void BM_planner_skin_rgb(benchmark::State& state) {
-    std::vector<stratum::Material<Real>> rgb;
-    for (const Real albedo : {0.95, 0.9, 0.9})
-        rgb.push_back({stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), {stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5)},
-                       {}, stratum::RoughDielectric<Real>(0.3, 1.4, 1.0)});
-    stratum::SceneRequest<Real> scene;
-    const stratum::LayerOutput outputs[] = {stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance,
-                                            stratum::LayerOutput::subsurface_reflection, stratum::LayerOutput::all};
-    scene.outputs = outputs[state.range(0)];
-    scene.incidence = {0.5};
-    scene.tolerance = std::pow(Real(10), -Real(state.range(1)));
-    int ordinates = 0;
-    for (auto _ : state) {
-        const auto planned = stratum::solve_planned_spectral(rgb, scene);
-        ordinates = planned.plan.options.ordinates;
-        benchmark::DoNotOptimize(planned.surfaces[0].reflectance(0.5).subsurface);
-    }
-    state.counters["ordinates"] = ordinates;
-}
+// Red, green and blue at once (albedos 0.95, 0.9, 0.9; solve_planned_spectral): compare with BM_planner_skin at the
+// same arguments (issue 12: three wavelengths <= 1.3x one).
+void BM_planner_skin_rgb(benchmark::State& state) { plan_skin(state, {0.95, 0.9, 0.9}); }
 BENCHMARK(BM_planner_skin_rgb)->ArgsProduct({{0, 1, 2}, {2}})->Unit(benchmark::kMillisecond);
 
 // Stam's layer solved for `request` from faces prepared once (PreparedBoundary), M = state.range(0): what a new
