@@ -60,7 +60,7 @@ void BM_planner_skin(benchmark::State& state) { plan_skin(state, {0.9}); }
 BENCHMARK(BM_planner_skin)->ArgsProduct({{0, 1, 2}, {2, 3}})->Unit(benchmark::kMillisecond);
 
 // Red, green and blue at once (albedos 0.95, 0.9, 0.9; solve_planned_spectral): compare with BM_planner_skin at the
-// same arguments (issue 12: three wavelengths <= 1.3x one).
+// same arguments (README's speed table: three wavelengths at 1.08 to 1.21 times one).
 void BM_planner_skin_rgb(benchmark::State& state) { plan_skin(state, {0.95, 0.9, 0.9}); }
 BENCHMARK(BM_planner_skin_rgb)->ArgsProduct({{0, 1, 2}, {2}})->Unit(benchmark::kMillisecond);
 
@@ -146,7 +146,7 @@ void BM_layer_solve_reflection_tol1e3(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_solve_reflection_tol1e3)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
-// The same from faces prepared once (the issue's target: <= 1 ms at M = 24).
+// The same from faces prepared once (README, known limitations: 1 ms aimed at for M = 24).
 void BM_layer_solve_reflection_tol1e3_prepared(benchmark::State& state) {
     stratum::LayerRequest<Real> r;
     r.outputs = stratum::LayerOutput::surface_reflection | stratum::LayerOutput::subsurface_reflection;

@@ -247,8 +247,8 @@ TEST_CASE("a face prepared again for other options shares its entry tables and e
     for (const LayerRequest<double>& request : requests())
         CHECK(bit_identical(outputs(solve_layer(slab, fresh_top, fresh_bottom, request)),
                             outputs(solve_layer(slab, top9, bottom9, request))));
-    // On the same ordinates the renormalization's totals are reused (for all modes from a mode-0 preparation): the
-    // same operators, bit for bit, for a face built as it is and for one built turned over (the bottom).
+    // On the same ordinates with more modes (all, after a mode-0 preparation): the same operators, bit for bit, for
+    // a face built as it is and for one built turned over (the bottom).
     LayerOptions all_modes = coarse;
     all_modes.modes = 0;
     const PreparedBoundary<double> top4_all(top4, all_modes), bottom4_all(bottom4, all_modes);

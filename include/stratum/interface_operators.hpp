@@ -205,28 +205,10 @@ public:
     /// is still only sampled, and 2M hemispherical_totals integrals are added.
     /// `totals_nodes`: the Gauss nodes per panel of the renormalization's integrals (RoughDielectric::hemispherical_totals,
     /// 2 to 32).
-    /// `same_ordinates`, if given, is this interface's operators on the same ordinates (any number of modes, renormalized
-    /// with the same totals_nodes):
-    /// their ordinate_totals are reused instead of integrated again (they do not depend on the modes), with the same
-    /// result bit for bit; the caller vouches for the ordinates (only their number is checked: ignored otherwise).
     /// Throws std::invalid_argument for modes < 1, an empty ordinate set or totals_nodes outside [2, 32].
     InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
                        const AzimuthalQuadrature<Real>& rule = AzimuthalQuadrature<Real>(),
-                       Renormalization renormalization = Renormalization::none, int totals_nodes = 16,
-                       const InterfaceOperators* same_ordinates = nullptr)
-        : InterfaceOperators(interface, ordinates, modes, rule, renormalization, totals_nodes,
-                             KnownTotals{same_ordinates ? &same_ordinates->totals_above_ : nullptr,
-                                         same_ordinates ? &same_ordinates->totals_below_ : nullptr}) {}
-
-private:
-    // Totals at the ordinates already integrated (by operators of the same face on the same ordinates), per side.
-    struct KnownTotals {
-        const std::vector<HemisphericalTotals<Real>>* above = nullptr;
-        const std::vector<HemisphericalTotals<Real>>* below = nullptr;
-    };
-    InterfaceOperators(const RoughDielectric<Real>& interface, const Quadrature<Real>& ordinates, int modes,
-                       const AzimuthalQuadrature<Real>& rule, Renormalization renormalization, int totals_nodes,
-                       KnownTotals known)
+                       Renormalization renormalization = Renormalization::none, int totals_nodes = 16)
         : rough_(interface), rule_(rule), modes_(detail::require_count("modes", modes, 1)),
           index_matched_(interface.index_matched()), specular_(interface.index_matched()) {
         detail::require_count("ordinates", static_cast<int>(ordinates.size()), 1);
@@ -248,8 +230,7 @@ private:
             // top, then equals top.flipped() bit for bit, which lets a solve reuse one face for both.
             *this = InterfaceOperators(RoughDielectric<Real>(interface.sigma(), interface.eta_below(),
                                                              interface.eta_above(), interface.shadowing()),
-                                       ordinates, modes, rule, renormalization, totals_nodes,
-                                       KnownTotals{known.below, known.above});  // (the sides exchange)
+                                       ordinates, modes, rule, renormalization, totals_nodes);
             turn_over();
             return;
         }
@@ -282,7 +263,7 @@ private:
                             for (int k = 0; k < modes; ++k) op(k, b, a) = weight(a) * c[static_cast<std::size_t>(k)];
                         }
                 }
-            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, known);
+            if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes);
             return;
         }
         for (int a = 0; a < m; ++a) {
@@ -307,10 +288,9 @@ private:
                 }
             }
         }
-        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes, known);
+        if (renormalization == Renormalization::hemispherical_totals) renormalize(ordinates, totals_nodes);
     }
 
-public:
     /// Smooth interface (sigma = 0): exact specular representation (see above). `transmission` chooses how
     /// the Snell-mapped transmission is put on the ordinates (default: pointwise); `points` is the local
     /// Lagrange window (0 = the default: 2 for flux_conserving, 4 for pointwise; at most M is used).
@@ -480,10 +460,8 @@ private:
     // Scales column m of each operator (all modes alike) so that its flux-weighted sum equals the
     // interface's hemispherical total for incidence mu_m (RoughDielectric::hemispherical_totals), blended continuously
     // with the specular column (see the constructor's comment) where the ordinates miss the lobe.
-    void renormalize(const Quadrature<Real>& ordinates, int nodes, KnownTotals known) {
+    void renormalize(const Quadrature<Real>& ordinates, int nodes) {
         const int m_count = static_cast<int>(ordinates.size());
-        const bool reuse = known.above && known.below && known.above->size() == ordinates.size() &&
-                           known.below->size() == ordinates.size();
         const auto weight = [&](int i) {
             return ordinates.weights[static_cast<std::size_t>(i)] * ordinates.nodes[static_cast<std::size_t>(i)];
         };
@@ -498,9 +476,7 @@ private:
             const Real eta_o = side == 0 ? rough_->eta_below() : rough_->eta_above();
             for (int m = 0; m < m_count; ++m) {
                 const Real mu = ordinates.nodes[static_cast<std::size_t>(m)];
-                const HemisphericalTotals<Real> target =
-                    reuse ? (side == 0 ? *known.above : *known.below)[static_cast<std::size_t>(m)]
-                          : rough_->hemispherical_totals(side == 0 ? mu : -mu, nodes);
+                const HemisphericalTotals<Real> target = rough_->hemispherical_totals(side == 0 ? mu : -mu, nodes);
                 (side == 0 ? totals_above_ : totals_below_).push_back(target);
                 for (int lobe = 0; lobe < 2; ++lobe) {
                     FourierOperators<Real>& op = lobe == 0 ? r : t;

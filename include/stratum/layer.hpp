@@ -318,17 +318,13 @@ public:
     }
     /// The same face prepared for other options, sharing what does not depend on them: the entry transmittances
     /// (built on first use, about 10 ms for a rough face), which a convergence study over the ordinates or the
-    /// planner (planner.hpp) then builds once; and, on the same ordinates and hemispherical_nodes (more modes after
-    /// a mode-0 preparation, say), the renormalization's hemispherical totals (2M integrals). Equal bit for bit to
-    /// preparing other.boundary() afresh. Throws as the constructor.
+    /// planner (planner.hpp) then builds once. Equal bit for bit to preparing other.boundary() afresh. Throws as the
+    /// constructor.
     explicit PreparedBoundary(const PreparedBoundary& other, const LayerOptions& options)
         : boundary_(other.boundary_), options_(options), from_above_(other.from_above_), from_below_(other.from_below_) {
         detail::require_options(options);
         if (!boundary_.rough()) return;
-        const bool same_ordinates = other.options_.ordinates == options.ordinates &&
-                                    other.options_.renormalization == options.renormalization &&
-                                    other.options_.hemispherical_nodes == options.hemispherical_nodes;
-        plain_ = build(gauss_legendre_half<Real>(options.ordinates), same_ordinates ? other.plain_.operators.get() : nullptr);
+        plain_ = build(gauss_legendre_half<Real>(options.ordinates));
     }
 
     const Boundary<Real>& boundary() const noexcept { return boundary_; }
@@ -382,14 +378,10 @@ private:
             return side == Incidence::from_above ? above : below;
         }
     };
-    OnRule build(const Quadrature<Real>& q, const InterfaceOperators<Real>* same_ordinates = nullptr) const {
+    OnRule build(const Quadrature<Real>& q) const {
         OnRule out;
         out.nodes = q.nodes;
-        out.operators = std::make_shared<const InterfaceOperators<Real>>(
-            same_ordinates ? InterfaceOperators<Real>(*boundary_.rough_interface(), q, modes(),
-                                                      AzimuthalQuadrature<Real>(options_.azimuthal_points),
-                                                      options_.renormalization, options_.hemispherical_nodes, same_ordinates)
-                           : boundary_.operators(q, modes(), options_));
+        out.operators = std::make_shared<const InterfaceOperators<Real>>(boundary_.operators(q, modes(), options_));
         for (const Incidence side : {Incidence::from_above, Incidence::from_below}) {
             std::vector<Real>& t = side == Incidence::from_above ? out.above : out.below;
             const auto& totals = out.operators->ordinate_totals(side);

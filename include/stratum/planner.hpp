@@ -457,10 +457,14 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
     // with an angular tolerance, the ordinates doubled (faces prepared from the last) until the estimate meets it.
     const bool estimate = scene.estimate_angular_error || scene.angular_tolerance > 0;
     const int flux_ordinates = plan.options.ordinates;
+    LayerRequest<Real> probe = plan.request;  // (the coarse solve needs the angular series, not the layer's operators)
+    if (includes(probe.outputs, LayerOutput::operators))
+        probe.outputs = static_cast<LayerOutput>(static_cast<unsigned>(probe.outputs) & ~static_cast<unsigned>(LayerOutput::operators)) |
+                        LayerOutput::subsurface_reflection | LayerOutput::transmission;
     std::vector<LayeredSurface<Real>> coarse;
     for (std::size_t w = 0; estimate && levels.before && w < wavelengths.size(); ++w) {
         const Material<Real>& m = wavelengths[w];
-        coarse.push_back(solve_stack(levels.before->top, m.slabs, levels.before->interior, levels.before->bottom, plan.request));
+        coarse.push_back(solve_stack(levels.before->top, m.slabs, levels.before->interior, levels.before->bottom, probe));
     }
     while (estimate && !coarse.empty()) {
         plan.angular_error = 0;
