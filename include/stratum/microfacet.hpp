@@ -60,8 +60,26 @@ STRATUM_HOST_DEVICE W smith_lambda_gaussian(W a) noexcept {
     return std::exp(-a * a) / (2 * sqrt_pi_v<W>) * t / (a * (a + t));
 }
 
-/// Inverse of erfc on (0, 2): a Winitzki-type starting value refined by Halley steps on erfc itself,
-/// so the result is as accurate as std::erfc. q is clamped away from 0 and 2 (results stay finite).
+/// Winitzki's approximation of the inverse of erfc on (0, 2) (relative error ~2e-3): the starting value of
+/// erfc_inverse, and of sample_visible_slope for a nearly Gaussian slope distribution. q is clamped away from 0.
+template <class W>
+STRATUM_HOST_DEVICE W erfc_inverse_estimate(W q) noexcept {
+    const W tiny = std::numeric_limits<W>::min() / std::numeric_limits<W>::epsilon();
+    const W sign = q > 1 ? W(-1) : W(1);
+    if (q > 1) q = 2 - q;
+    if (!(q > tiny)) q = tiny;
+    // erf^{-1}(z) ~ sqrt(sqrt(b^2 - L/c) - b), b = 2/(pi c) + L/2, L = ln(1 - z^2), c = 0.147.
+    const W L = std::log(q) + std::log(2 - q);  // ln(1 - z^2) with z = 1 - q, without cancellation
+    const W c = W(0.147);
+    const W b = 2 / (pi_v<W> * c) + L / 2;
+    return sign * std::sqrt(std::fmax(W(0), std::sqrt(b * b - L / c) - b));
+}
+
+/// Inverse of erfc on (0, 2): Winitzki's starting value refined by Halley steps on erfc itself, so the result is
+/// as accurate as std::erfc. q is clamped away from 0 and 2 (results stay finite). For f = erfc(x) - q,
+/// f''/f' = -2x and f'''/f' = 4x^2 - 2, so a Halley step s leaves an error of about (1 + x^2) s^3 / 3: the
+/// iteration stops once that is below rounding, without evaluating erfc again to confirm it (tested against
+/// long double references in tests/test_microfacet.cpp).
 template <class W>
 STRATUM_HOST_DEVICE W erfc_inverse(W q) noexcept {
     const W tiny = std::numeric_limits<W>::min() / std::numeric_limits<W>::epsilon();
@@ -72,17 +90,13 @@ STRATUM_HOST_DEVICE W erfc_inverse(W q) noexcept {
     }
     if (!(q > tiny)) q = tiny;
     if (q == 1) return W(0);
-    // erf^{-1}(z) ~ sqrt(sqrt(b^2 - L/c) - b), b = 2/(pi c) + L/2, L = ln(1 - z^2), c = 0.147 (rel. err ~2e-3).
-    const W L = std::log(q) + std::log(2 - q);  // ln(1 - z^2) with z = 1 - q, without cancellation
-    const W c = W(0.147);
-    const W b = 2 / (pi_v<W> * c) + L / 2;
-    W x = std::sqrt(std::fmax(W(0), std::sqrt(b * b - L / c) - b));
+    W x = erfc_inverse_estimate(q);
     for (int it = 0; it < 4; ++it) {
-        // f = erfc(x) - q, f' = -(2/sqrt(pi)) e^{-x^2}, f''/f' = -2x: Halley step x -= r / (1 + x r), r = f/f'.
+        // f = erfc(x) - q, f' = -(2/sqrt(pi)) e^{-x^2}: Halley step x -= r / (1 + x r), r = f/f'.
         const W r = -(std::erfc(x) - q) * (sqrt_pi_v<W> / 2) * std::exp(x * x);
         const W step = r / (1 + x * r);
         x -= step;
-        if (std::fabs(step) <= 4 * std::numeric_limits<W>::epsilon() * std::fmax(W(1), x)) break;
+        if (std::fabs(step) * step * step * (1 + x * x) <= std::numeric_limits<W>::epsilon() * std::fmax(W(1), x)) break;
     }
     return sign * x;
 }
@@ -91,30 +105,38 @@ STRATUM_HOST_DEVICE W erfc_inverse(W q) noexcept {
 /// from a direction with a = cot(theta) / alpha. Its density is proportional to (a - x) exp(-x^2) on x < a
 /// (projected facet area times the slope density), with CDF proportional to
 ///   g(x) = (sqrt(pi)/2) a erfc(-x) + exp(-x^2) / 2,
-/// inverted by Newton's method safeguarded by bisection, stopped when the residual is at rounding level.
+/// inverted by Halley's (or Newton's) method safeguarded by bisection, stopped when the residual is at rounding level.
 /// g is scaled by 1/a when a >= 1 (a = inf is the Gaussian). The search interval is [-27, min(a, 27)]:
 /// beyond 27 the density is below 1e-316.
 template <class W>
 STRATUM_HOST_DEVICE W sample_visible_slope(W a, W u) noexcept {
     const W A = a >= 1 ? W(1) : a;
     const W B = a >= 1 ? 1 / a : W(1);
-    auto g = [&](W x) { return A * (sqrt_pi_v<W> / 2) * std::erfc(-x) + B * std::exp(-x * x) / 2; };
     W lo = -27, hi = std::fmin(a, W(27));
-    const W total = g(hi), target = u * total;
-    // Starting value: the a = inf solution (the Gaussian quantile) for a >= 2, the a = 0 one
-    // (x = -sqrt(-ln u), density -x exp(-x^2)) below; Newton then takes 3-6 steps.
-    const W x0 = a >= 2 ? -erfc_inverse(2 * u) : -std::sqrt(-std::log(std::fmax(u, std::numeric_limits<W>::min())));
+    const W total = A * (sqrt_pi_v<W> / 2) * std::erfc(-hi) + B * std::exp(-hi * hi) / 2, target = u * total;
+    // Starting value: for a >= 1 the Gaussian quantile (Winitzki's estimate of it) shifted by -1 / (2a), since
+    // (a - x) exp(-x^2) ~ a exp(-(x + 1/(2a))^2) for large a (closer, so fewer steps, than the unshifted quantile);
+    // below, the a = 0 solution x = -sqrt(-ln u) (density -x exp(-x^2)).
+    const W x0 = a >= 1 ? -erfc_inverse_estimate(2 * u) - 1 / (2 * a)
+                        : -std::sqrt(-std::log(std::fmax(u, std::numeric_limits<W>::min())));
     W x = std::fmin(std::fmax(x0, lo), hi);
     for (int it = 0; it < 100; ++it) {
-        const W f = g(x) - target;
+        const W e = std::exp(-x * x);  // (once: g and its derivatives share it)
+        const W f = A * (sqrt_pi_v<W> / 2) * std::erfc(-x) + B * e / 2 - target;
         if (std::fabs(f) <= 4 * std::numeric_limits<W>::epsilon() * total) break;  // rounding level
         if (f < 0)
             lo = x;
         else
             hi = x;
-        const W df = std::exp(-x * x) * (A - B * x);
-        W next = df > 0 ? x - f / df : (lo + hi) / 2;
-        if (!(next >= lo && next <= hi)) next = (lo + hi) / 2;  // Newton left the bracket: bisect
+        // f' = e (A - B x), f'' = -e (2 x (A - B x) + B): Halley's step where its correction to Newton's is
+        // moderate (far from the root, in the tails, Halley's step creeps), else Newton's.
+        const W d1 = e * (A - B * x), d2 = -e * (2 * x * (A - B * x) + B);
+        W next = (lo + hi) / 2;
+        if (d1 > 0) {
+            const W newton = f / d1, t = newton * d2 / (2 * d1);
+            next = x - (std::fabs(t) < W(0.5) ? newton / (1 - t) : newton);
+        }
+        if (!(next >= lo && next <= hi)) next = (lo + hi) / 2;  // left the bracket: bisect
         const W step = std::fabs(next - x);
         x = next;
         if (step <= 2 * std::numeric_limits<W>::epsilon() * std::fmax(W(1), std::fabs(x)) || !(lo < hi)) break;
