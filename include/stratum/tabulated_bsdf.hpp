@@ -904,16 +904,21 @@ private:
         // A transmitted delta's coefficient in radiance mode: (eta_wi / eta_wo)^2 (see TransportMode).
         Real radiance_factor() const noexcept { return (eta_above / eta_below) * (eta_above / eta_below); }
 
-        // cos(dphi), dphi between -wi and wo (1 when either is along the normal).
-        // The products and the square root are safe for unit vectors (and for any whose components lie within
-        // 1e-150 .. 1e150 in double); others take hypot's path, which neither overflows nor underflows.
+        // cos(dphi), dphi between -wi and wo (1 when either is along the normal): -(wi.xy . wo.xy) / sqrt(|wi.xy|^2
+        // |wo.xy|^2), one square root and one division, where the squares and their product neither overflow nor
+        // underflow (unit vectors, and any whose components lie within about 1e-75 .. 1e75 in double); others take
+        // hypot's path, which does neither.
         static Real cos_dphi(Vec3<Real> wi, Vec3<Real> wo) noexcept {
-            const Real pi2 = wi.x * wi.x + wi.y * wi.y, po2 = wo.x * wo.x + wo.y * wo.y;
-            const bool plain = pi2 >= std::numeric_limits<Real>::min() && po2 >= std::numeric_limits<Real>::min() &&
-                               pi2 <= std::numeric_limits<Real>::max() && po2 <= std::numeric_limits<Real>::max();
-            const Real ri = plain ? std::sqrt(pi2) : std::hypot(wi.x, wi.y), ro = plain ? std::sqrt(po2) : std::hypot(wo.x, wo.y);
-            if (!(ri > 0) || !(ro > 0)) return Real(1);
-            const Real c = -((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro));
+            const Real pi2 = wi.x * wi.x + wi.y * wi.y, po2 = wo.x * wo.x + wo.y * wo.y, p = pi2 * po2;
+            Real c;
+            if (pi2 >= std::numeric_limits<Real>::min() && po2 >= std::numeric_limits<Real>::min() &&
+                p >= std::numeric_limits<Real>::min() && p <= std::numeric_limits<Real>::max()) {
+                c = -(wi.x * wo.x + wi.y * wo.y) / std::sqrt(p);
+            } else {
+                const Real ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
+                if (!(ri > 0) || !(ro > 0)) return Real(1);
+                c = -((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro));
+            }
             return c > Real(1) ? Real(1) : (c < Real(-1) ? Real(-1) : c);
         }
     };
