@@ -136,7 +136,7 @@ Real invert_segment(const HermiteSegment<Real>& seg, Real r, Real scale) noexcep
 // cos((k + 2) phi) = 2 cos(2 phi) cos(k phi) - cos((k - 2) phi), run for the even and the odd k side by side. Two
 // independent chains of half the length, where Clenshaw's single chain waits on a multiply, an add and a subtract
 // per mode (it was a large part of TabulatedBSDF::eval). The forward recurrence's rounding grows like k^2 eps
-// near x = +-1 (as Clenshaw's); measured within 3e-15 of sum |c_k| up to 256 modes (tests/test_tabulated_bsdf.cpp).
+// near x = +-1 (as Clenshaw's), worst at phi ~ 1e-4 .. 1e-3 (tests/test_tabulated_bsdf.cpp measures it).
 template <class Real>
 Real cosine_series(const Real* c, int order, Real x) noexcept {
     if (order <= 1) return order == 1 ? c[0] : Real(0);
@@ -175,8 +175,8 @@ const AzimuthTables<Real>& azimuth_tables() noexcept {
     return tables;
 }
 
-// A sampled azimuth: phi, its cosine and sine, and the series g(phi) there (from the last step, so the caller
-// needs no second sincos or series).
+// A sampled azimuth: phi, its cosine and sine (from the last step, so the caller needs no second sincos), and the
+// series g(phi) there by the sampler's recurrence.
 template <class Real>
 struct AzimuthSample {
     Real phi, cos_phi, sin_phi, value;
@@ -701,7 +701,7 @@ private:
         }
 
         // The series interpolated at (t_i, t_o): c[k] = sum over the 16 pairs of weight x a_k, each mode with the
-        // weights of its parity; returns its length (c must hold kMaxOrder, one more than max_order). Summing the coefficients first and
+        // weights of its parity; returns its length (c must hold kMaxOrder). Summing the coefficients first and
         // the series once is cheaper than a series per pair; the sums run over the pairs for two modes at a time in
         // registers (not one pair at a time through c, whose every element would wait on the previous pair's store).
         int interpolate(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
@@ -727,7 +727,7 @@ private:
                     if (k + 1 < len[q]) odd += w_odd[q] * Real(src[q][k + 1]);
                 }
                 c[k] = even;
-                c[k + 1] = odd;
+                if (k + 1 < order) c[k + 1] = odd;
             }
             return order;
         }
@@ -886,8 +886,10 @@ private:
             const Real st = std::sqrt(detail::clamp_unit((1 - mu_o) * (1 + mu_o)));
             LobeSample out;
             out.wo = {st * (cp * ex - sp * ey), st * (cp * ey + sp * ex), reflected ? mu_o : -mu_o};
-            // At the pole (wi or wo along the normal) only mode 0 is seen, as cos_dphi() says there.
-            const Real g = r > 0 && st > 0 ? az.value : detail::cosine_series(c, order, Real(1));
+            // The value as lobe() (eval, pdf) computes it at wo: the same summation at cos_dphi(wi, wo), which is
+            // 1 at the pole (wi or wo along the normal, only mode 0 seen). (The sampler's own g at phi, from another
+            // recurrence, differs by ~1e-15 of sum |c_k|: too much, relative to g, in a lobe's tails at 100 modes.)
+            const Real g = detail::cosine_series(c, order, cos_dphi(wi, out.wo));
             out.at.value = g > 0 ? g : Real(0);
             out.at.density = sampled_density(tab, si, so, t_o, c[0], out.at.value);
             return out;
@@ -923,9 +925,8 @@ private:
         }
     };
 
-    // The longest series a pair keeps, and one more: sample() sums the interpolated series in a buffer of this
-    // size (interpolate writes modes in pairs).
-    static constexpr int kMaxOrder = max_order + 1;
+    // The longest series a pair keeps (sample() sums the interpolated series in a buffer of this size).
+    static constexpr int kMaxOrder = max_order;
 
     // The side for wi, with both directions mirrored into the frame where light arrives from above; null for
     // degenerate directions and for light from below on a one-sided table.
