@@ -586,6 +586,45 @@ TEST_CASE("TabulatedBSDF with channels: one grid for RGB, the luminance sampled,
     }
 }
 
+TEST_CASE("TabulatedBSDF with six channels: every channel's eval is its own interpolated series") {
+    // eval(wi, wo, values) interpolates the luminance and the stored channels four series a pass; coefficients()
+    // interpolates one channel at a time (the derived one from the luminance and the others). Transmission (no
+    // surface lobe): values[c] |wo.z| must be the channel's series at cos(dphi), clamped at 0, to rounding.
+    LayerOptions o;
+    o.ordinates = 8;
+    std::vector<Slab<double>> slabs;
+    for (double albedo : {0.95, 0.9, 0.85, 0.75, 0.6, 0.5}) slabs.push_back(Slab<double>::from_transparency(albedo, 0.8, 0.5));
+    const std::vector<LayeredSurface<double>> layers =
+        solve_spectral(slabs, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0), o);
+    const TabulatedBSDF<double> table(layers, 1e-2, {0.1, 0.3, 0.1, 0.2, 0.2, 0.1});  // channel 1 the derived one
+    REQUIRE(table.channels() == 6);
+    std::mt19937_64 rng(23);
+    std::vector<double> a(TabulatedBSDF<double>::max_order);
+    double worst = 0;
+    for (int n = 0; n < 500; ++n) {
+        const Vec3<double> wi = direction(uniform(rng), 2 * pi * uniform(rng));
+        Vec3<double> wo = direction(uniform(rng), 2 * pi * uniform(rng));
+        wo.z = -wo.z;
+        double v[6];
+        table.eval(wi, wo, v);
+        const double ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
+        const double x = -(wi.x * wo.x + wi.y * wo.y) / (ri * ro);
+        for (int c = 0; c < 6; ++c) {
+            const int order = table.coefficients(false, true, wi.z, -wo.z, a.data(), c);
+            long double sum = 0, scale = 0;
+            for (int k = 0; k < order; ++k) {
+                sum += a[static_cast<std::size_t>(k)] * std::cos(k * std::acos(static_cast<long double>(x)));
+                scale += std::fabs(a[static_cast<std::size_t>(k)]);
+            }
+            const double expected = std::fmax(0.0, static_cast<double>(sum));
+            CAPTURE(c);
+            CHECK(std::fabs(v[c] * -wo.z - expected) <= 1e-12 * static_cast<double>(scale));
+            if (scale > 0) worst = std::fmax(worst, std::fabs(v[c] * -wo.z - expected) / static_cast<double>(scale));
+        }
+    }
+    MESSAGE("six channels: worst difference " << worst << " of sum |a_k|");
+}
+
 TEST_CASE("TabulatedBSDF with channels: per-channel deltas between smooth faces, and misuse refused") {
     LayerOptions o;
     o.ordinates = 8;

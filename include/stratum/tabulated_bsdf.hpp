@@ -731,6 +731,41 @@ private:
             }
             return order;
         }
+        // As interpolate, Count consecutive series from `first` at once (c[s kMaxOrder + k] for series first + s):
+        // the pairs' offsets, lengths and weights and the tests of the lengths shared by all of them (one series
+        // alone is interpolate's: the same code through this template measured 20% slower in eval).
+        template <int Count>
+        int interpolate_series(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
+                               const detail::SplineWeights<Real>& so, int first, Real* c) const noexcept {
+            const float* src[16];
+            int len[16];
+            Real w_even[16], w_odd[16];
+            int order = 0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) {
+                    const std::size_t p = pair(si, a, so, b);
+                    const int q = 4 * a + b;
+                    len[q] = tab.order(p);
+                    src[q] = tab.pair(p, first);  // (series first + s at src[q] + s len[q])
+                    w_even[q] = si.even[a] * so.even[b];
+                    w_odd[q] = si.odd[a] * so.odd[b];
+                    order = std::max(order, len[q]);
+                }
+            for (int k = 0; k < order; k += 2) {
+                Real even[Count] = {}, odd[Count] = {};
+                for (int q = 0; q < 16; ++q) {
+                    if (k < len[q])
+                        for (int s = 0; s < Count; ++s) even[s] += w_even[q] * Real(src[q][s * len[q] + k]);
+                    if (k + 1 < len[q])
+                        for (int s = 0; s < Count; ++s) odd[s] += w_odd[q] * Real(src[q][s * len[q] + k + 1]);
+                }
+                for (int s = 0; s < Count; ++s) {
+                    c[s * kMaxOrder + k] = even[s];
+                    if (k + 1 < order) c[s * kMaxOrder + k + 1] = odd[s];
+                }
+            }
+            return order;
+        }
 
         // value = f |wo.z| clamped to >= 0; with `density`, also the mixture density times the albedos' total.
         // (si: the weights of wi.z)
@@ -785,15 +820,30 @@ private:
             const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
             const detail::SplineWeights<Real> so = weights(detail::clamp_unit(std::fabs(wo.z)));
             const Real x = cos_dphi(wi, wo);
-            Real c[kMaxOrder];
             if (channels == 1) {
+                Real c[kMaxOrder];
                 out[0] = detail::cosine_series(c, interpolate(tab, si, so, c), x);
             } else {
-                Real rest = detail::cosine_series(c, interpolate(tab, si, so, c), x);  // the luminance
-                for (int ch = 0; ch < channels; ++ch) {
-                    if (ch == derived) continue;
-                    out[ch] = detail::cosine_series(c, interpolate(tab, si, so, c, stored_series(ch)), x);
-                    rest -= luminance[static_cast<std::size_t>(ch)] * out[ch];
+                // The luminance (series 0) and the stored channels (series 1 .. channels - 1), four series a pass.
+                Real c[4 * kMaxOrder];
+                Real rest = 0;
+                for (int first = 0; first < channels; first += 4) {
+                    const int count = std::min(4, channels - first);
+                    const int order = count == 4   ? interpolate_series<4>(tab, si, so, first, c)
+                                      : count == 3 ? interpolate_series<3>(tab, si, so, first, c)
+                                      : count == 2 ? interpolate_series<2>(tab, si, so, first, c)
+                                                   : interpolate_series<1>(tab, si, so, first, c);
+                    for (int s = 0; s < count; ++s) {
+                        const Real value = detail::cosine_series(c + s * kMaxOrder, order, x);
+                        const int series = first + s;
+                        if (series == 0) {
+                            rest += value;
+                        } else {
+                            const int ch = series - 1 < derived ? series - 1 : series;
+                            out[ch] = value;
+                            rest -= luminance[static_cast<std::size_t>(ch)] * value;
+                        }
+                    }
                 }
                 out[derived] = rest / luminance[static_cast<std::size_t>(derived)];
             }
