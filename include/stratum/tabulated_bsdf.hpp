@@ -733,7 +733,7 @@ private:
         }
         // As interpolate, Count consecutive series from `first` at once (c[s kMaxOrder + k] for series first + s):
         // the pairs' offsets, lengths and weights and the tests of the lengths shared by all of them (one series
-        // alone is interpolate's: the same code through this template measured 20% slower in eval).
+        // alone stays in interpolate: through this template it was slower in eval, back to back).
         template <int Count>
         int interpolate_series(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
                                const detail::SplineWeights<Real>& so, int first, Real* c) const noexcept {
