@@ -700,71 +700,68 @@ private:
             return c * jacobian[static_cast<std::size_t>(b)];
         }
 
+        // The 16 pairs around (t_i, t_o): where series `first` of each starts, its length and its weights.
+        struct Stencil {
+            const float* src[16];
+            int len[16];
+            Real w_even[16], w_odd[16];
+            int order = 0;  // the longest
+        };
+        Stencil stencil(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
+                        const detail::SplineWeights<Real>& so, int first) const noexcept {
+            Stencil st;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) {
+                    const std::size_t p = pair(si, a, so, b);
+                    const int q = 4 * a + b;
+                    st.len[q] = tab.order(p);
+                    st.src[q] = tab.pair(p, first);  // (series first + s at src[q] + s len[q])
+                    st.w_even[q] = si.even[a] * so.even[b];
+                    st.w_odd[q] = si.odd[a] * so.odd[b];
+                    st.order = std::max(st.order, st.len[q]);
+                }
+            return st;
+        }
+
         // The series interpolated at (t_i, t_o): c[k] = sum over the 16 pairs of weight x a_k, each mode with the
         // weights of its parity; returns its length (c must hold kMaxOrder). Summing the coefficients first and
         // the series once is cheaper than a series per pair; the sums run over the pairs for two modes at a time in
         // registers (not one pair at a time through c, whose every element would wait on the previous pair's store).
         int interpolate(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
                         const detail::SplineWeights<Real>& so, Real* c, int series = 0) const noexcept {
-            const float* src[16];
-            int len[16];
-            Real w_even[16], w_odd[16];
-            int order = 0;
-            for (int a = 0; a < 4; ++a)
-                for (int b = 0; b < 4; ++b) {
-                    const std::size_t p = pair(si, a, so, b);
-                    const int q = 4 * a + b;
-                    len[q] = tab.order(p);
-                    src[q] = tab.pair(p, series);
-                    w_even[q] = si.even[a] * so.even[b];
-                    w_odd[q] = si.odd[a] * so.odd[b];
-                    order = std::max(order, len[q]);
-                }
-            for (int k = 0; k < order; k += 2) {
+            const Stencil st = stencil(tab, si, so, series);
+            for (int k = 0; k < st.order; k += 2) {
                 Real even = 0, odd = 0;
                 for (int q = 0; q < 16; ++q) {
-                    if (k < len[q]) even += w_even[q] * Real(src[q][k]);
-                    if (k + 1 < len[q]) odd += w_odd[q] * Real(src[q][k + 1]);
+                    if (k < st.len[q]) even += st.w_even[q] * Real(st.src[q][k]);
+                    if (k + 1 < st.len[q]) odd += st.w_odd[q] * Real(st.src[q][k + 1]);
                 }
                 c[k] = even;
-                if (k + 1 < order) c[k + 1] = odd;
+                if (k + 1 < st.order) c[k + 1] = odd;
             }
-            return order;
+            return st.order;
         }
-        // As interpolate, Count consecutive series from `first` at once (c[s kMaxOrder + k] for series first + s):
-        // the pairs' offsets, lengths and weights and the tests of the lengths shared by all of them (one series
-        // alone stays in interpolate: through this template it was slower in eval, back to back).
+        // As interpolate, Count consecutive series from `first` at once (c[s kMaxOrder + k] for series first + s),
+        // the stencil and the tests of the lengths shared by all of them (one series alone stays in interpolate:
+        // through this template it was slower in eval, back to back).
         template <int Count>
         int interpolate_series(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
                                const detail::SplineWeights<Real>& so, int first, Real* c) const noexcept {
-            const float* src[16];
-            int len[16];
-            Real w_even[16], w_odd[16];
-            int order = 0;
-            for (int a = 0; a < 4; ++a)
-                for (int b = 0; b < 4; ++b) {
-                    const std::size_t p = pair(si, a, so, b);
-                    const int q = 4 * a + b;
-                    len[q] = tab.order(p);
-                    src[q] = tab.pair(p, first);  // (series first + s at src[q] + s len[q])
-                    w_even[q] = si.even[a] * so.even[b];
-                    w_odd[q] = si.odd[a] * so.odd[b];
-                    order = std::max(order, len[q]);
-                }
-            for (int k = 0; k < order; k += 2) {
+            const Stencil st = stencil(tab, si, so, first);
+            for (int k = 0; k < st.order; k += 2) {
                 Real even[Count] = {}, odd[Count] = {};
                 for (int q = 0; q < 16; ++q) {
-                    if (k < len[q])
-                        for (int s = 0; s < Count; ++s) even[s] += w_even[q] * Real(src[q][s * len[q] + k]);
-                    if (k + 1 < len[q])
-                        for (int s = 0; s < Count; ++s) odd[s] += w_odd[q] * Real(src[q][s * len[q] + k + 1]);
+                    if (k < st.len[q])
+                        for (int s = 0; s < Count; ++s) even[s] += st.w_even[q] * Real(st.src[q][s * st.len[q] + k]);
+                    if (k + 1 < st.len[q])
+                        for (int s = 0; s < Count; ++s) odd[s] += st.w_odd[q] * Real(st.src[q][s * st.len[q] + k + 1]);
                 }
                 for (int s = 0; s < Count; ++s) {
                     c[s * kMaxOrder + k] = even[s];
-                    if (k + 1 < order) c[s * kMaxOrder + k + 1] = odd[s];
+                    if (k + 1 < st.order) c[s * kMaxOrder + k + 1] = odd[s];
                 }
             }
-            return order;
+            return st.order;
         }
 
         // value = f |wo.z| clamped to >= 0; with `density`, also the mixture density times the albedos' total.
