@@ -273,9 +273,10 @@ TEST_CASE("visible normals: samples follow visible_normal_pdf (chi-square) and t
 
 TEST_CASE("erfc_inverse: erfc(x) = q to rounding, from q = 1e-290 to 2 - 1e-16") {
     // The reference refines x by Newton's method on std::erfc in long double (64-bit mantissa): x is within
-    // 4 ulp of it (scaled by max(1, |x|): near q = 1, x ~ 0 is accurate in absolute terms; below q ~ 1e-292 q is
-    // clamped, microfacet.hpp). The stop rule that
-    // skips the confirming evaluation (microfacet.hpp) would show here as a few-ulp error.
+    // 2 ulp of it (scaled by max(1, |x|): near q = 1, x ~ 0 is accurate in absolute terms; below q ~ 1e-292 q is
+    // clamped, microfacet.hpp): std::erfc's own ~1 ulp, which bounds what any inverse built on it can reach
+    // (measured 0.75 ulp here, 1.09 over 2 million q). A stop rule that left one Halley step undone would miss by
+    // 1e-8 or more.
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> uniform(0, 1);
     double worst = 0;
@@ -287,7 +288,7 @@ TEST_CASE("erfc_inverse: erfc(x) = q to rounding, from q = 1e-290 to 2 - 1e-16")
             r += (std::erfc(r) - static_cast<long double>(q)) * std::sqrt(3.14159265358979323846264L) / 2 * std::exp(r * r);
         const double err = std::fabs(static_cast<double>(x - r)) / std::fmax(1.0, std::fabs(x));
         CAPTURE(q);
-        CHECK(err <= 4 * std::numeric_limits<double>::epsilon());
+        CHECK(err <= 2 * std::numeric_limits<double>::epsilon());
         worst = std::fmax(worst, err);
     }
     MESSAGE("erfc_inverse: worst error " << worst / std::numeric_limits<double>::epsilon() << " ulp");

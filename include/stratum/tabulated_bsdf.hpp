@@ -175,11 +175,10 @@ const AzimuthTables<Real>& azimuth_tables() noexcept {
     return tables;
 }
 
-// A sampled azimuth: phi, its cosine and sine (from the last step, so the caller needs no second sincos), and the
-// series g(phi) there by the sampler's recurrence.
+// A sampled azimuth: phi, its cosine and sine (from the last step, so the caller needs no second sincos).
 template <class Real>
 struct AzimuthSample {
-    Real phi, cos_phi, sin_phi, value;
+    Real phi, cos_phi, sin_phi;
 };
 
 // Samples phi in [0, pi] with density proportional to g(phi) = sum_k c_k cos(k phi) (c_0 > 0, order <= 256) by
@@ -230,7 +229,7 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
             c_prev = c_k;
             c_k = c_next;
         }
-        out = {phi, cp, sp, g};
+        out = {phi, cp, sp};
         const Real r = G - target;
         if (std::fabs(r) <= tolerance) return out;
         if (r > 0) hi = phi; else lo = phi;
@@ -239,9 +238,7 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
         phi = (next > lo && next < hi) ? next : (lo + hi) / 2;
         if (hi - lo <= 4 * std::numeric_limits<Real>::epsilon() * pi) break;
     }
-    // (stopped by the bracket's width: the series at the last phi)
-    out = {phi, std::cos(phi), std::sin(phi), cosine_series(c, order, std::cos(phi))};
-    return out;
+    return {phi, std::cos(phi), std::sin(phi)};  // (stopped by the bracket's width)
 }
 
 // The table's variable: t in [0, 1] with mu = sin^2(pi t / 2). Mode k of the coefficients behaves like
