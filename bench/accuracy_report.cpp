@@ -19,6 +19,7 @@
 
 #include "accuracy_modules.hpp"
 #include "../tests/reference/mc_layer.hpp"
+#include "../tests/reference/mc_stack.hpp"
 
 namespace {
 
@@ -558,6 +559,110 @@ void rough_top_split() {
         std::printf("| %d | %.1e | %.1e | %.1e | %.1e |\n", i == 0 ? 16 : 32, mean[i][0], worst[i][0], mean[i][1], worst[i][1]);
 }
 
+// ---- A specular top over a rough bottom: one half-range rule against ordinates split at the bottom's critical cosine
+void rough_bottom_split() {
+    std::printf("\n## Layer solver: a smooth top over a rough bottom (photon Monte Carlo)\n\n24 random layers (fixed "
+                "seed; bench/accuracy_report.cpp, rough_bottom_split: a smooth top from air into n 1 to 1.5, a rough "
+                "bottom of RMS slope 1e-3 to 1, masking-only shadowing, back to air; albedo 0 to 1, g 0 to 0.9, tau 0.1 "
+                "to 10, one incidence mu0 0.2 to 1), against the photon Monte Carlo of tests/reference/mc_layer.hpp "
+                "(4e5 photons, standard error <= 8e-4). Error: the larger of |R - R_MC| and |T - T_MC|, fractions of the "
+                "incident flux. One rule: `LayerOptions::critical_split = false`; split: the default "
+                "(detail::layer_quadrature).\n\n| ordinates | one rule: mean | worst | split: mean | worst |\n"
+                "|---|---|---|---|---|\n");
+    std::mt19937_64 rng(77);
+    std::uniform_real_distribution<double> u(0, 1);
+    const int layers = 24;
+    double mean[2][2] = {}, worst[2][2] = {};  // [M = 16, 32][one rule, split]
+    for (int trial = 0; trial < layers; ++trial) {
+        const double n = 1 + 0.5 * u(rng), albedo = u(rng) < 0.3 ? 1.0 : u(rng), g = 0.9 * u(rng);
+        const double tau = std::pow(10.0, -1 + 2 * u(rng)), sigma = std::pow(10.0, -3 + 3 * u(rng)), mu0 = 0.2 + 0.8 * u(rng);
+        const mc_layer::Layer layer{mc_layer::Boundary::specular(1, n), mc_layer::Boundary::gaussian(sigma, n, 1), albedo,
+                                    g, tau};
+        const mc_layer::Tally t = mc_layer::trace(layer, mu0, 400000, 900 + static_cast<std::uint64_t>(trial));
+        const stratum::Boundary<double> top = stratum::SmoothDielectric<double>(1, n);
+        const stratum::Boundary<double> bottom = stratum::RoughDielectric<double>(sigma, n, 1, stratum::Shadowing::masking_only);
+        for (int i = 0; i < 2; ++i)
+            for (int split = 0; split < 2; ++split) {
+                stratum::LayerOptions o;
+                o.ordinates = i == 0 ? 16 : 32;
+                o.critical_split = split == 1;
+                stratum::LayerRequest<double> r;
+                r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
+                r.incidence = {mu0};
+                const auto l = stratum::solve_layer(stratum::Slab<double>(albedo, g, tau), top, bottom, o, r);
+                const double e = std::max(std::fabs(l.reflectance(mu0).subsurface - t.fraction(t.subsurface)),
+                                          std::fabs(l.transmittance(mu0) - t.fraction(t.transmitted)));
+                mean[i][split] += e / layers;
+                worst[i][split] = std::max(worst[i][split], e);
+            }
+    }
+    for (int i = 0; i < 2; ++i)
+        std::printf("| %d | %.1e | %.1e | %.1e | %.1e |\n", i == 0 ? 16 : 32, mean[i][0], worst[i][0], mean[i][1], worst[i][1]);
+}
+
+// ---- Stacks with refracting joints: one half-range rule against the rule split at every critical cosine ----------
+void refracting_stacks() {
+    std::printf("\n## Layer solver: stacks whose joints refract (photon Monte Carlo)\n\nSix stacks of two or three slabs "
+                "between smooth faces (bench/accuracy_report.cpp, refracting_stacks: glass over tissue and others, "
+                "indices 1.2 to 1.5, one over a denser substrate), each at mu0 = 1, 0.5 and 0.2, against the photon "
+                "Monte Carlo of tests/reference/mc_stack.hpp (2e6 photons, standard error <= 4e-4). Error: the larger of "
+                "|R - R_MC| and |T - T_MC|, fractions of the incident flux. One rule: `LayerOptions::critical_split = "
+                "false`; split: the default, the slabs' shared rule split at every face's critical cosine, joints "
+                "included (detail::layer_quadrature).\n\n| ordinates | one rule: mean | worst | split: mean | worst |\n"
+                "|---|---|---|---|---|\n");
+    struct Case {
+        std::vector<double> eta, tau, albedo, g;
+        double below;
+    };
+    const std::vector<Case> cases = {
+        {{1.5, 1.4}, {0.3, 2.0}, {0.5, 0.95}, {0.5, 0.8}, 1.0},
+        {{1.5, 1.4, 1.38}, {0.2, 0.5, 4.0}, {0.3, 0.9, 0.99}, {0.0, 0.8, 0.85}, 1.0},
+        {{1.33, 1.5}, {1.0, 1.0}, {0.9, 0.9}, {0.7, 0.0}, 1.0},
+        {{1.4, 1.2}, {0.5, 0.5}, {0.99, 0.8}, {0.3, 0.9}, 1.0},
+        {{1.5, 1.33}, {0.1, 8.0}, {0.0, 0.999}, {0.0, 0.9}, 1.0},
+        {{1.38, 1.45}, {2.0, 0.3}, {0.95, 0.5}, {0.8, 0.0}, 1.5},
+    };
+    const int ms[] = {8, 16, 24, 32};
+    double mean[4][2] = {}, worst[4][2] = {};
+    int count = 0;
+    for (const Case& c : cases)
+        for (const double mu0 : {1.0, 0.5, 0.2}) {
+            mc_stack::Stack s;
+            s.eta = c.eta;
+            s.tau = c.tau;
+            s.albedo = c.albedo;
+            s.g = c.g;
+            s.n_below = c.below;
+            const mc_stack::Result mc = mc_stack::simulate(s, mu0, 2000000, 7);
+            std::vector<stratum::Slab<double>> slabs;
+            std::vector<stratum::Boundary<double>> joints;
+            for (std::size_t j = 0; j < c.eta.size(); ++j) {
+                slabs.emplace_back(c.albedo[j], c.g[j], c.tau[j]);
+                if (j > 0) joints.push_back(stratum::SmoothDielectric<double>(c.eta[j - 1], c.eta[j]));
+            }
+            ++count;
+            for (int i = 0; i < 4; ++i)
+                for (int split = 0; split < 2; ++split) {
+                    stratum::LayerOptions o;
+                    o.ordinates = ms[i];
+                    o.critical_split = split == 1;
+                    stratum::LayerRequest<double> r;
+                    r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
+                    r.incidence = {mu0};
+                    const auto l = stratum::solve_stack<double>(stratum::SmoothDielectric<double>(1.0, c.eta.front()), slabs,
+                                                                joints, stratum::SmoothDielectric<double>(c.eta.back(), c.below),
+                                                                o, r);
+                    const double e = std::max(std::fabs(l.reflectance(mu0).total() - mc.R()),
+                                              std::fabs(l.transmittance(mu0) - mc.T()));
+                    mean[i][split] += e;
+                    worst[i][split] = std::max(worst[i][split], e);
+                }
+        }
+    for (int i = 0; i < 4; ++i)
+        std::printf("| %d | %.1e | %.1e | %.1e | %.1e |\n", ms[i], mean[i][0] / count, worst[i][0], mean[i][1] / count,
+                    worst[i][1]);
+}
+
 // ---- The planner: its error estimate against the true error, and its cost against the full solve ----------------
 // A random material of every face kind (as tests/test_planner.cpp draws them).
 stratum::Material<double> random_material(std::mt19937_64& rng, bool& floor) {
@@ -845,6 +950,8 @@ int main() {
     layer_intensities();
     layer_energy_sweep();
     rough_top_split();
+    rough_bottom_split();
+    refracting_stacks();
     planner();
     tabulated_bsdf_tolerance();
     pareto_fronts();
