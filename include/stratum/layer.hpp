@@ -1894,10 +1894,20 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     std::vector<Real> cuts;  // critical cosines inside the slabs: sqrt(1 - (n_out / n_in)^2) where n_out < n_in
     std::vector<Real> ratios{top.eta_above() / top.eta_below()};
     if (!bottom.lambertian()) ratios.push_back(bottom.eta_below() / bottom.eta_above());
-    for (const Boundary<Real>& b : interior)  // (the denser side's)
-        ratios.push_back(std::fmin(b.eta_above(), b.eta_below()) / std::fmax(b.eta_above(), b.eta_below()));
     for (const Real r : ratios)
         if (r < 1) cuts.push_back(std::sqrt((1 - r) * (1 + r)));
+    // A joint's cut only where the ordinates resolve it: at least half the half-range rule's spacing there from 0 and
+    // 1. A nearly matched joint (index ratio 1 + 1e-12: a cut at 1.4e-6) took a share of the points for a cone that
+    // holds no light, and the layer jumped by 1.3e-2 from the matched one at 8 ordinates (now 3e-4 at mu0 = 1, the
+    // size of the discretization error; tests/test_layer_stack.cpp). (Dropping a cut within that distance of another
+    // cut as well cost 4e-3 against the photon Monte Carlo at 16 ordinates for 1 | 1.4 | 1.2 | 1.)
+    const Quadrature<Real> plain = shared_gauss_legendre_half<Real>(m);
+    for (const Boundary<Real>& b : interior) {  // (the denser side's)
+        const Real r = std::fmin(b.eta_above(), b.eta_below()) / std::fmax(b.eta_above(), b.eta_below());
+        if (!(r < 1)) continue;
+        const Real cut = std::sqrt((1 - r) * (1 + r)), half = spacing_at(plain.nodes, cut) / 2;
+        if (cut > half && 1 - cut > half) cuts.push_back(cut);
+    }
     std::sort(cuts.begin(), cuts.end());
     cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
     const int panels = static_cast<int>(cuts.size()) + 1;
