@@ -87,6 +87,34 @@ TEST_CASE("refracting stack, no scattering: the unscattered beam is the scalar a
     }
 }
 
+TEST_CASE("refracting stack over a Lambertian floor: energy at albedo 1, and the joint's specular reflection is direct") {
+    // air | 1.5 (tau 0.7) | 1.4 (tau 1.3) | white floor, both slabs non-absorbing: everything comes back, R = 1. The
+    // beam the joint reflects specularly leaves through the top as direct_reflectance (the scalar adding of the faces
+    // and slabs; the floor reflects none of it specularly). That reflection was left out over a floor: R = 0.99973
+    // at every M, the joint's Fresnel reflection attenuated twice by the top slab.
+    const std::vector<Slab<double>> slabs{Slab<double>(1.0, 0.8, 0.7), Slab<double>(1.0, 0.5, 1.3)};
+    for (const int m : {4, 8, 16}) {
+        LayerOptions o;
+        o.ordinates = m;
+        const auto layer = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.5), slabs,
+                                                        {SmoothDielectric<double>(1.5, 1.4)},
+                                                        Boundary<double>::lambertian(1.0, 1.4), o);
+        for (double mu0 : {1.0, 0.6, 0.2, 0.01}) {
+            const double c0 = std::sqrt(1 - (1 - mu0 * mu0) / (1.5 * 1.5)), c1 = std::sqrt(1 - (1 - mu0 * mu0) / (1.4 * 1.4));
+            const double r_top = stratum::fresnel_dielectric(mu0, 1.5), r_joint = stratum::fresnel_dielectric(c0, 1.4 / 1.5);
+            Element total{r_top, r_top, 1 - r_top, 1 - r_top};
+            total = add(total, {0, 0, std::exp(-0.7 / c0), std::exp(-0.7 / c0)});
+            total = add(total, {r_joint, r_joint, 1 - r_joint, 1 - r_joint});
+            total = add(total, {0, 0, std::exp(-1.3 / c1), std::exp(-1.3 / c1)});
+            total = add(total, {0, 0, 0, 0});  // the floor: nothing specular
+            INFO("M = " << m << ", mu0 " << mu0);
+            CHECK(std::fabs(layer.reflectance(mu0).total() - 1) < 1e-12);
+            CHECK(layer.direct_reflectance(mu0) == doctest::Approx(total.r - r_top).epsilon(1e-12));
+            CHECK(layer.direct_transmittance(mu0) == 0);
+        }
+    }
+}
+
 TEST_CASE("refracting stack: a conservative stack keeps energy; a joint of index ratio 1 + 1e-12 is the matched one") {
     const std::vector<Slab<double>> slabs{Slab<double>(1.0, 0.8, 0.7), Slab<double>(1.0, 0.5, 1.3), Slab<double>(1.0, 0.9, 2.0)};
     // (At M = 12 the rule split at all four critical cosines aliases the g = 0.9 slab's phase function: the solve
