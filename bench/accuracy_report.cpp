@@ -514,7 +514,60 @@ void layer_energy_sweep() {
                     above3[rough], above2[rough], worst[rough]);
 }
 
-// ---- A rough coat on a smooth base: one half-range rule against ordinates split at the critical cosines ----------
+// ---- One half-range rule against ordinates split at critical cosines, over random layers (photon Monte Carlo) ---
+// One random layer of a family: the Monte Carlo's description, the solver's faces and slab, and the incidence.
+struct RandomLayer {
+    mc_layer::Layer layer;
+    stratum::Boundary<double> top, bottom;
+    double mu0;
+};
+
+// Prints the table's rows: mean and worst of max(|R - R_MC|, |T - T_MC|) (subsurface R) at M = 16 and 32, one rule
+// (critical_split = false) and split, over `layers` draws of `draw` (seeds first_seed, first_seed + 1, ...).
+template <class Draw>
+void split_rows(int layers, std::uint64_t first_seed, Draw draw) {
+    double mean[2][2] = {}, worst[2][2] = {};  // [M = 16, 32][one rule, split]
+    for (int trial = 0; trial < layers; ++trial) {
+        const RandomLayer x = draw();
+        const mc_layer::Tally t = mc_layer::trace(x.layer, x.mu0, 400000, first_seed + static_cast<std::uint64_t>(trial));
+        for (int i = 0; i < 2; ++i)
+            for (int split = 0; split < 2; ++split) {
+                stratum::LayerOptions o;
+                o.ordinates = i == 0 ? 16 : 32;
+                o.critical_split = split == 1;
+                stratum::LayerRequest<double> r;
+                r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
+                r.incidence = {x.mu0};
+                const auto l = stratum::solve_layer(stratum::Slab<double>(x.layer.albedo, x.layer.g, x.layer.tau), x.top,
+                                                    x.bottom, o, r);
+                const double e = std::max(std::fabs(l.reflectance(x.mu0).subsurface - t.fraction(t.subsurface)),
+                                          std::fabs(l.transmittance(x.mu0) - t.fraction(t.transmitted)));
+                mean[i][split] += e / layers;
+                worst[i][split] = std::max(worst[i][split], e);
+            }
+    }
+    for (int i = 0; i < 2; ++i)
+        std::printf("| %d | %.1e | %.1e | %.1e | %.1e |\n", i == 0 ? 16 : 32, mean[i][0], worst[i][0], mean[i][1], worst[i][1]);
+}
+
+// The draws both families share, in this order: n 1 to 1.5, albedo 0 to 1 (three in ten exactly 1), g 0 to 0.9,
+// tau 0.1 to 10, RMS slope 10^lowest_log_sigma to 1, mu0 0.2 to 1.
+struct Parameters {
+    double n, albedo, g, tau, sigma, mu0;
+};
+Parameters draw_parameters(std::mt19937_64& rng, double lowest_log_sigma) {
+    std::uniform_real_distribution<double> u(0, 1);
+    Parameters p{};
+    p.n = 1 + 0.5 * u(rng);
+    p.albedo = u(rng) < 0.3 ? 1.0 : u(rng);
+    p.g = 0.9 * u(rng);
+    p.tau = std::pow(10.0, -1 + 2 * u(rng));
+    p.sigma = std::pow(10.0, lowest_log_sigma * (1 - u(rng)));
+    p.mu0 = 0.2 + 0.8 * u(rng);
+    return p;
+}
+
+// A rough coat on a smooth base.
 void rough_top_split() {
     std::printf("\n## Layer solver: a rough top over a smooth or index-matched bottom (photon Monte Carlo)\n\n16 random "
                 "layers (fixed seed; bench/accuracy_report.cpp, rough_top_split: a rough top of RMS slope 0.05 to 1, "
@@ -527,39 +580,20 @@ void rough_top_split() {
                 "|---|---|---|---|---|\n");
     std::mt19937_64 rng(2026);
     std::uniform_real_distribution<double> u(0, 1);
-    const int layers = 16;
-    double mean[2][2] = {}, worst[2][2] = {};  // [M = 16, 32][one rule, split]
-    for (int trial = 0; trial < layers; ++trial) {
-        const double n = 1 + 0.5 * u(rng), albedo = u(rng) < 0.3 ? 1.0 : u(rng), g = 0.9 * u(rng);
-        const double tau = std::pow(10.0, -1 + 2 * u(rng)), sigma = std::pow(10.0, -1.3 + 1.3 * u(rng)), mu0 = 0.2 + 0.8 * u(rng);
+    split_rows(16, 500, [&] {
+        const Parameters p = draw_parameters(rng, -1.3);
         const bool matched = u(rng) < 1.0 / 3;
-        const mc_layer::Layer layer{mc_layer::Boundary::gaussian(sigma, 1, n),
-                                    matched ? mc_layer::Boundary::index_matched(n) : mc_layer::Boundary::specular(n, 1),
-                                    albedo, g, tau};
-        const mc_layer::Tally t = mc_layer::trace(layer, mu0, 400000, 500 + static_cast<std::uint64_t>(trial));
-        const stratum::Boundary<double> top = stratum::RoughDielectric<double>(sigma, 1, n, stratum::Shadowing::masking_only);
-        const stratum::Boundary<double> bottom = matched ? stratum::Boundary<double>::index_matched(n)
-                                                         : stratum::Boundary<double>(stratum::SmoothDielectric<double>(n, 1));
-        for (int i = 0; i < 2; ++i)
-            for (int split = 0; split < 2; ++split) {
-                stratum::LayerOptions o;
-                o.ordinates = i == 0 ? 16 : 32;
-                o.critical_split = split == 1;
-                stratum::LayerRequest<double> r;
-                r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
-                r.incidence = {mu0};
-                const auto l = stratum::solve_layer(stratum::Slab<double>(albedo, g, tau), top, bottom, o, r);
-                const double e = std::max(std::fabs(l.reflectance(mu0).subsurface - t.fraction(t.subsurface)),
-                                          std::fabs(l.transmittance(mu0) - t.fraction(t.transmitted)));
-                mean[i][split] += e / layers;
-                worst[i][split] = std::max(worst[i][split], e);
-            }
-    }
-    for (int i = 0; i < 2; ++i)
-        std::printf("| %d | %.1e | %.1e | %.1e | %.1e |\n", i == 0 ? 16 : 32, mean[i][0], worst[i][0], mean[i][1], worst[i][1]);
+        return RandomLayer{{mc_layer::Boundary::gaussian(p.sigma, 1, p.n),
+                            matched ? mc_layer::Boundary::index_matched(p.n) : mc_layer::Boundary::specular(p.n, 1), p.albedo,
+                            p.g, p.tau},
+                           stratum::RoughDielectric<double>(p.sigma, 1, p.n, stratum::Shadowing::masking_only),
+                           matched ? stratum::Boundary<double>::index_matched(p.n)
+                                   : stratum::Boundary<double>(stratum::SmoothDielectric<double>(p.n, 1)),
+                           p.mu0};
+    });
 }
 
-// ---- A specular top over a rough bottom: one half-range rule against ordinates split at the bottom's critical cosine
+// A smooth top over a rough bottom.
 void rough_bottom_split() {
     std::printf("\n## Layer solver: a smooth top over a rough bottom (photon Monte Carlo)\n\n24 random layers (fixed "
                 "seed; bench/accuracy_report.cpp, rough_bottom_split: a smooth top from air into n 1 to 1.5, a rough "
@@ -570,34 +604,13 @@ void rough_bottom_split() {
                 "(detail::layer_quadrature).\n\n| ordinates | one rule: mean | worst | split: mean | worst |\n"
                 "|---|---|---|---|---|\n");
     std::mt19937_64 rng(77);
-    std::uniform_real_distribution<double> u(0, 1);
-    const int layers = 24;
-    double mean[2][2] = {}, worst[2][2] = {};  // [M = 16, 32][one rule, split]
-    for (int trial = 0; trial < layers; ++trial) {
-        const double n = 1 + 0.5 * u(rng), albedo = u(rng) < 0.3 ? 1.0 : u(rng), g = 0.9 * u(rng);
-        const double tau = std::pow(10.0, -1 + 2 * u(rng)), sigma = std::pow(10.0, -3 + 3 * u(rng)), mu0 = 0.2 + 0.8 * u(rng);
-        const mc_layer::Layer layer{mc_layer::Boundary::specular(1, n), mc_layer::Boundary::gaussian(sigma, n, 1), albedo,
-                                    g, tau};
-        const mc_layer::Tally t = mc_layer::trace(layer, mu0, 400000, 900 + static_cast<std::uint64_t>(trial));
-        const stratum::Boundary<double> top = stratum::SmoothDielectric<double>(1, n);
-        const stratum::Boundary<double> bottom = stratum::RoughDielectric<double>(sigma, n, 1, stratum::Shadowing::masking_only);
-        for (int i = 0; i < 2; ++i)
-            for (int split = 0; split < 2; ++split) {
-                stratum::LayerOptions o;
-                o.ordinates = i == 0 ? 16 : 32;
-                o.critical_split = split == 1;
-                stratum::LayerRequest<double> r;
-                r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
-                r.incidence = {mu0};
-                const auto l = stratum::solve_layer(stratum::Slab<double>(albedo, g, tau), top, bottom, o, r);
-                const double e = std::max(std::fabs(l.reflectance(mu0).subsurface - t.fraction(t.subsurface)),
-                                          std::fabs(l.transmittance(mu0) - t.fraction(t.transmitted)));
-                mean[i][split] += e / layers;
-                worst[i][split] = std::max(worst[i][split], e);
-            }
-    }
-    for (int i = 0; i < 2; ++i)
-        std::printf("| %d | %.1e | %.1e | %.1e | %.1e |\n", i == 0 ? 16 : 32, mean[i][0], worst[i][0], mean[i][1], worst[i][1]);
+    split_rows(24, 900, [&] {
+        const Parameters p = draw_parameters(rng, -3);
+        return RandomLayer{{mc_layer::Boundary::specular(1, p.n), mc_layer::Boundary::gaussian(p.sigma, p.n, 1), p.albedo, p.g,
+                            p.tau},
+                           stratum::SmoothDielectric<double>(1, p.n),
+                           stratum::RoughDielectric<double>(p.sigma, p.n, 1, stratum::Shadowing::masking_only), p.mu0};
+    });
 }
 
 // ---- Stacks with refracting joints: one half-range rule against the rule split at every critical cosine ----------
