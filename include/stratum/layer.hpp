@@ -1908,6 +1908,18 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
         const Real cut = std::sqrt((1 - r) * (1 + r)), half = spacing_at(plain.nodes, cut) / 2;
         if (cut > half && 1 - cut > half) cuts.push_back(cut);
     }
+    // Over a Lambertian floor (no critical cosine of its own) the floor's diffuse light meets the top's escape cone,
+    // the invariant n sin(theta) = n_above of the top, in every slab: its Snell image there is a cut too. Without
+    // them R of 1 | 1.5 | 1.4 | 1.38 over a floor wandered over 1.6e-2 from M = 8 to 48, with them over 3.2e-3; against
+    // the photon Monte Carlo within 2e-3 at M = 16 and 32, where it was off by up to 6.8e-3 (tests/test_layer_stack.cpp). (Over a specular bottom the same images did not help: mixed against the
+    // photon Monte Carlo, worse at M = 32 for three slabs.)
+    if (bottom.lambertian() && top.eta_above() < top.eta_below())
+        for (const Boundary<Real>& b : interior) {
+            const Real s = top.eta_above() / b.eta_below();  // sine of the image in the slab below the joint
+            if (!(s < 1)) continue;
+            const Real image = std::sqrt((1 - s) * (1 + s)), half = spacing_at(plain.nodes, image) / 2;
+            if (image > half && 1 - image > half) cuts.push_back(image);
+        }
     std::sort(cuts.begin(), cuts.end());
     cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
     const int panels = static_cast<int>(cuts.size()) + 1;

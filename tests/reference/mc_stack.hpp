@@ -12,7 +12,8 @@
 // between medium k (above it) and medium k+1 (below it). Every face is a smooth interface: a photon reaching
 // it reflects specularly with the exact unpolarized Fresnel probability F and otherwise refracts by Snell's
 // law (equal indices: F = 0, it crosses unchanged; total internal reflection: F = 1). tau[j] may be 0 (the
-// photon crosses the slab without an event) or +inf (nothing gets below it).
+// photon crosses the slab without an event) or +inf (nothing gets below it). With Stack::floor_albedo >= 0 the
+// bottom face is a Lambertian floor instead (see there).
 //
 // State. The faces are infinite planes and the tallies are fluxes integrated over all exit directions and
 // positions, so a photon's state is just (slab j, optical depth t below the slab's top face, c). c is the
@@ -49,6 +50,10 @@ constexpr double two_pi = 6.283185307179586476925286766559005768;
 struct Stack {
     double n_above = 1, n_below = 1;
     std::vector<double> eta, tau, albedo, g;  // one entry per slab, top to bottom
+    /// >= 0: a Lambertian floor of this albedo instead of the bottom face (n_below unused). A photon reaching it
+    /// is absorbed with probability 1 - floor_albedo, otherwise sent back up with a cosine-weighted direction
+    /// (|c| = sqrt(u)), and counts as scattered.
+    double floor_albedo = -1;
 };
 
 struct Result {
@@ -141,6 +146,7 @@ inline Result simulate(const Stack& s, double mu0, std::uint64_t photons, std::u
         detail::check(s.albedo[j] >= 0 && s.albedo[j] <= 1, "albedo must be in [0, 1]");
         detail::check(s.g[j] > -1 && s.g[j] < 1, "g must be in (-1, 1)");
     }
+    detail::check(s.floor_albedo <= 1, "floor_albedo must be <= 1");
     detail::check(mu0 > 0 && mu0 <= 1, "mu0 must be in (0, 1]");
     detail::check(photons > 0, "photons must be > 0");
 
@@ -186,7 +192,15 @@ inline Result simulate(const Stack& s, double mu0, std::uint64_t photons, std::u
             }
             // Reaches the face ahead: face j + 1 going down (into medium j + 2), face j going up (into medium j).
             if (c > 0) {
-                if (detail::cross_face(n[j + 1], n[j + 2], c, u())) {
+                if (j + 1 == L && s.floor_albedo >= 0) {  // the floor
+                    if (!(u() < s.floor_albedo)) {
+                        ++c_abs;
+                        break;
+                    }
+                    scattered = true;
+                    c = -std::sqrt(1 - u());  // cosine-weighted, moving up (1 - u in (0, 1]: never on the horizon)
+                    t = tau;
+                } else if (detail::cross_face(n[j + 1], n[j + 2], c, u())) {
                     if (j + 1 == L) {
                         ++(scattered ? c_tsca : c_tdir);
                         break;
