@@ -234,7 +234,10 @@ TEST_CASE("refracting stacks over a Lambertian floor against the photon Monte Ca
         std::vector<double> eta, tau, albedo, g;
         double floor;
     };
-    const Case cases[] = {{{1.5, 1.4}, {0.7, 1.3}, {0.9, 0.95}, {0.8, 0.5}, 0.5},
+    // (The first, one slab, checks the Monte Carlo's floor against the solver's single-slab floor, which converges
+    // smoothly: within 2.4e-5 of 2e7 photons at mu0 = 1, M = 64.)
+    const Case cases[] = {{{1.4}, {0.8}, {0.9}, {0.6}, 0.7},
+                          {{1.5, 1.4}, {0.7, 1.3}, {0.9, 0.95}, {0.8, 0.5}, 0.5},
                           {{1.5, 1.4, 1.38}, {0.2, 0.5, 4.0}, {0.3, 0.9, 0.99}, {0.0, 0.8, 0.85}, 0.6}};
     for (const Case& c : cases)
         for (const double mu0 : {1.0, 0.4}) {
