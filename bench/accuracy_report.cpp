@@ -615,25 +615,30 @@ void rough_bottom_split() {
 
 // ---- Stacks with refracting joints: one half-range rule against the rule split at every critical cosine ----------
 void refracting_stacks() {
-    std::printf("\n## Layer solver: stacks whose joints refract (photon Monte Carlo)\n\nSix stacks of two or three slabs "
-                "between smooth faces (bench/accuracy_report.cpp, refracting_stacks: glass over tissue and others, "
-                "indices 1.2 to 1.5, one over a denser substrate), each at mu0 = 1, 0.5 and 0.2, against the photon "
+    std::printf("\n## Layer solver: stacks whose joints refract (photon Monte Carlo)\n\nNine stacks of two or three slabs "
+                "under a smooth top (bench/accuracy_report.cpp, refracting_stacks: glass over tissue and others, "
+                "indices 1.2 to 1.5; six over a smooth bottom, one of them a denser substrate, three over a Lambertian "
+                "floor), each at mu0 = 1, 0.5 and 0.2, against the photon "
                 "Monte Carlo of tests/reference/mc_stack.hpp (2e6 photons, standard error <= 4e-4). Error: the larger of "
                 "|R - R_MC| and |T - T_MC|, fractions of the incident flux. One rule: `LayerOptions::critical_split = "
                 "false`; split: the default, the slabs' shared rule split at every face's critical cosine, joints "
-                "included (detail::layer_quadrature).\n\n| ordinates | one rule: mean | worst | split: mean | worst |\n"
+                "included, and over a floor at the top's escape cone in every slab (detail::layer_quadrature).\n\n"
+                "| ordinates | one rule: mean | worst | split: mean | worst |\n"
                 "|---|---|---|---|---|\n");
     struct Case {
         std::vector<double> eta, tau, albedo, g;
-        double below;
+        double below, floor;  // the index below a smooth bottom; a Lambertian floor's albedo (< 0: none)
     };
     const std::vector<Case> cases = {
-        {{1.5, 1.4}, {0.3, 2.0}, {0.5, 0.95}, {0.5, 0.8}, 1.0},
-        {{1.5, 1.4, 1.38}, {0.2, 0.5, 4.0}, {0.3, 0.9, 0.99}, {0.0, 0.8, 0.85}, 1.0},
-        {{1.33, 1.5}, {1.0, 1.0}, {0.9, 0.9}, {0.7, 0.0}, 1.0},
-        {{1.4, 1.2}, {0.5, 0.5}, {0.99, 0.8}, {0.3, 0.9}, 1.0},
-        {{1.5, 1.33}, {0.1, 8.0}, {0.0, 0.999}, {0.0, 0.9}, 1.0},
-        {{1.38, 1.45}, {2.0, 0.3}, {0.95, 0.5}, {0.8, 0.0}, 1.5},
+        {{1.5, 1.4}, {0.3, 2.0}, {0.5, 0.95}, {0.5, 0.8}, 1.0, -1},
+        {{1.5, 1.4, 1.38}, {0.2, 0.5, 4.0}, {0.3, 0.9, 0.99}, {0.0, 0.8, 0.85}, 1.0, -1},
+        {{1.33, 1.5}, {1.0, 1.0}, {0.9, 0.9}, {0.7, 0.0}, 1.0, -1},
+        {{1.4, 1.2}, {0.5, 0.5}, {0.99, 0.8}, {0.3, 0.9}, 1.0, -1},
+        {{1.5, 1.33}, {0.1, 8.0}, {0.0, 0.999}, {0.0, 0.9}, 1.0, -1},
+        {{1.38, 1.45}, {2.0, 0.3}, {0.95, 0.5}, {0.8, 0.0}, 1.5, -1},
+        {{1.5, 1.4}, {0.7, 1.3}, {0.9, 0.95}, {0.8, 0.5}, 1.0, 0.5},
+        {{1.5, 1.4, 1.38}, {0.2, 0.5, 4.0}, {0.3, 0.9, 0.99}, {0.0, 0.8, 0.85}, 1.0, 0.6},
+        {{1.33, 1.5}, {1.0, 1.0}, {0.9, 0.9}, {0.7, 0.0}, 1.0, 0.8},
     };
     const int ms[] = {8, 16, 24, 32};
     double mean[4][2] = {}, worst[4][2] = {};
@@ -646,6 +651,7 @@ void refracting_stacks() {
             s.albedo = c.albedo;
             s.g = c.g;
             s.n_below = c.below;
+            s.floor_albedo = c.floor;
             const mc_stack::Result mc = mc_stack::simulate(s, mu0, 2000000, 7);
             std::vector<stratum::Slab<double>> slabs;
             std::vector<stratum::Boundary<double>> joints;
@@ -662,9 +668,11 @@ void refracting_stacks() {
                     stratum::LayerRequest<double> r;
                     r.outputs = stratum::LayerOutput::reflectance | stratum::LayerOutput::transmittance;
                     r.incidence = {mu0};
+                    const stratum::Boundary<double> bottom =
+                        c.floor >= 0 ? stratum::Boundary<double>::lambertian(c.floor, c.eta.back())
+                                     : stratum::Boundary<double>(stratum::SmoothDielectric<double>(c.eta.back(), c.below));
                     const auto l = stratum::solve_stack<double>(stratum::SmoothDielectric<double>(1.0, c.eta.front()), slabs,
-                                                                joints, stratum::SmoothDielectric<double>(c.eta.back(), c.below),
-                                                                o, r);
+                                                                joints, bottom, o, r);
                     const double e = std::max(std::fabs(l.reflectance(mu0).total() - mc.R()),
                                               std::fabs(l.transmittance(mu0) - mc.T()));
                     mean[i][split] += e;
