@@ -1898,8 +1898,8 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
         if (r < 1) cuts.push_back(std::sqrt((1 - r) * (1 + r)));
     // A joint's cut only where the ordinates resolve it: at least half the half-range rule's spacing there from 0 and
     // 1. A nearly matched joint (index ratio 1 + 1e-12: a cut at 1.4e-6) took a share of the points for a cone that
-    // holds no light, and the layer jumped by 1.3e-2 from the matched one at 8 ordinates (now 3e-4 at mu0 = 1, the
-    // size of the discretization error; tests/test_layer_stack.cpp). (Dropping a cut within that distance of another
+    // holds no light, and the layer jumped by 2.9e-2 from the matched one at 8 ordinates (now 2.5e-3, the size of
+    // the discretization error there; 4.3e-4 at 12, 5.2e-5 at 16: tests/test_layer_stack.cpp). (Dropping a cut within that distance of another
     // cut as well cost 4e-3 against the photon Monte Carlo at 16 ordinates for 1 | 1.4 | 1.2 | 1.)
     const Quadrature<Real> plain = shared_gauss_legendre_half<Real>(m);
     for (const Boundary<Real>& b : interior) {  // (the denser side's)
@@ -1910,9 +1910,10 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     }
     // Over a Lambertian floor (no critical cosine of its own) the floor's diffuse light meets the top's escape cone,
     // the invariant n sin(theta) = n_above of the top, in every slab: its Snell image there is a cut too. Without
-    // them R of 1 | 1.5 | 1.4 | 1.38 over a floor wandered over 1.6e-2 from M = 8 to 48, with them over 3.2e-3; against
-    // the photon Monte Carlo within 2e-3 at M = 16 and 32, where it was off by up to 6.8e-3 (tests/test_layer_stack.cpp). (Over a specular bottom the same images did not help: mixed against the
-    // photon Monte Carlo, worse at M = 32 for three slabs.)
+    // them R of 1 | 1.5 | 1.4 | 1.38 over a floor wandered over 1.6e-2 from M = 8 to 48, with them over 3.2e-3;
+    // against the photon Monte Carlo within 2e-3 at M = 16 and 32, where it was off by up to 6.8e-3
+    // (tests/test_layer_stack.cpp). (Over a specular bottom the same images did not help: mixed against the photon
+    // Monte Carlo, worse at M = 32 for three slabs.)
     if (bottom.lambertian() && top.eta_above() < top.eta_below())
         for (const Boundary<Real>& b : interior) {
             const Real s = top.eta_above() / b.eta_below();  // sine of the image in the slab below the joint
