@@ -123,9 +123,11 @@ struct LayerRequest {
     /// evaluation there skips the top interface's coefficients, its reflectance integral and the per-mode solve.
     /// Other incidences still work (computed on the fly).
     std::vector<Real> incidence;
-    /// Optical depths in [0, tau], measured from the top of a one-slab layer (true, not delta-M scaled), at which
-    /// depth_profile() will give the fluence rate and the net flux (their fields are prepared here: two slab
-    /// solves of mode 0 per depth).
+    /// Optical depths in [0, tau], measured from the top of the layer (true, not delta-M scaled; through a stack,
+    /// the sum of the slabs' thicknesses above plus the depth into the slab), at which depth_profile() will give
+    /// the fluence rate and the net flux (their fields are prepared here: two slab solves of mode 0 per depth). A
+    /// stack of several slabs needs specular faces (smooth or index-matched, over a specular face or a Lambertian
+    /// floor), where the beam is a source; a depth on a joint is taken in the slab above it.
     std::vector<Real> depths;
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
     int max_modes = 0;
@@ -551,8 +553,20 @@ Real diffuse_size(const ComponentOperators<Real>& c, const std::vector<Real>& mu
 
 // ---- The steps of LayeredSurface::solve that need nothing of the solved layer ----
 
+/// Whether the beam can be a source exact at its angle (LayeredSurface::beam_field): slabs joined by smooth or
+/// index-matched faces under a specular top, over a specular face or a Lambertian floor.
+template <class Real>
+bool beam_is_a_source(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
+                      const Boundary<Real>& bottom) noexcept {
+    if (top.rough() || top.lambertian() || bottom.rough()) return false;
+    for (const Boundary<Real>& b : interior)
+        if (b.rough() || b.lambertian()) return false;
+    return true;
+}
+
 /// Rejects inconsistent input (solve_stack's contract) through fail_invalid_argument: counts, the tolerance, the
-/// number of interior faces, indices that disagree across a slab, incidence cosines outside (0, 1].
+/// number of interior faces, indices that disagree across a slab, incidence cosines outside (0, 1], depths outside
+/// the layer or in a stack whose beam is not a source.
 template <class Real>
 void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                     const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
@@ -581,11 +595,13 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
     for (std::size_t j = 0; j < request.incidence.size(); ++j)
         require_closed(("request.incidence[" + std::to_string(j) + "]").c_str(), request.incidence[j],
                        std::nextafter(Real(0), Real(1)), Real(1));
-    if (!request.depths.empty() && slabs.size() != 1)
-        fail_invalid_argument("stratum: request.depths needs a layer of one slab, got " + std::to_string(slabs.size()));
+    if (!request.depths.empty() && slabs.size() != 1 && !beam_is_a_source(top, interior, bottom))
+        fail_invalid_argument("stratum: request.depths in a stack of " + std::to_string(slabs.size()) +
+                              " slabs needs specular faces (smooth or index-matched; a Lambertian floor below)");
+    Real total = 0;
+    for (const Slab<Real>& slab : slabs) total += slab.optical_thickness();
     for (std::size_t j = 0; j < request.depths.size(); ++j)
-        require_closed(("request.depths[" + std::to_string(j) + "]").c_str(), request.depths[j], Real(0),
-                       slabs[0].optical_thickness());
+        require_closed(("request.depths[" + std::to_string(j) + "]").c_str(), request.depths[j], Real(0), total);
 }
 
 /// The Fourier modes to solve: LayerOptions::modes (0: 2M, as many as 2M Legendre moments support) capped by
@@ -708,17 +724,6 @@ bool beam_stays_on_its_ordinate(const Boundary<Real>& top, const std::vector<Bou
     if (top.rough() || bottom.rough() || bottom.lambertian()) return false;
     for (const Boundary<Real>& b : interior)
         if (b.rough() || b.eta_above() != b.eta_below()) return false;
-    return true;
-}
-
-/// Whether the beam can be a source exact at its angle (LayeredSurface::beam_field): slabs joined by smooth or
-/// index-matched faces under a specular top, over a specular face or a Lambertian floor.
-template <class Real>
-bool beam_is_a_source(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
-                      const Boundary<Real>& bottom) noexcept {
-    if (top.rough() || top.lambertian() || bottom.rough()) return false;
-    for (const Boundary<Real>& b : interior)
-        if (b.rough() || b.lambertian()) return false;
     return true;
 }
 
@@ -1003,8 +1008,8 @@ private:
     void add_field_operators(int k, const detail::StackMode<Real>& below);
     Real coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
     void solve_ambient();
-    void solve_depths(const detail::PreparedStack<Real>& stack, const Slab<Real>& slab, const LayerOptions& options,
-                      const std::vector<Real>& depths);
+    void solve_depths(const detail::PreparedStack<Real>& stack, const std::vector<Slab<Real>>& slabs,
+                      const LayerOptions& options, const std::vector<Real>& depths);
     void separate_direct_beam(Real scaled_tau, Real true_tau);
     struct BeamDepth;
     BeamDepth beam_depth(const Slab<Real>& slab, const LayerOptions& options, Real t) const;
@@ -1808,7 +1813,8 @@ private:
     // Per requested depth, between specular faces (beam_): the slab cut there into A (above) and B (below), each
     // with its beam source (mode 0), R and T, and the LU factors of I - R_A R_B (depth_profile).
     struct BeamDepth {
-        Real depth, scaled_depth;
+        Real depth, scaled_depth;  // from the top of the layer; from the top of its slab, delta-M scaled
+        std::size_t slab = 0;      // the slab it lies in
         detail::SlabBeam<Real> above, below;
         detail::Matrix<Real> r_a, t_a, r_b, t_b;
         detail::LU<Real> lu;
@@ -2012,7 +2018,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     // function is aliased on the ordinates (solve_modes), the beam is spread over the ordinates instead, with its
     // energy made exact (scattering_scale).
     bool beam = detail::beam_is_a_source(top, interior, bottom) &&
-                (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
+                (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs) ||
+                 (slabs.size() > 1 && !request.depths.empty()));
     for (const detail::SlabModes<Real>& p : stack.slabs)
         beam = beam && p.slab.optical_thickness() >= std::sqrt(std::numeric_limits<Real>::epsilon()) * s.q_.nodes.front();
     if (beam) {
@@ -2064,7 +2071,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         }
     }
     if (includes(request.outputs, LayerOutput::ambient)) s.solve_ambient();  // 5.
-    if (!request.depths.empty()) s.solve_depths(stack, slabs[0], options, request.depths);
+    if (!request.depths.empty()) s.solve_depths(stack, slabs, options, request.depths);
     if (detail::beam_stays_on_its_ordinate(top, interior, bottom)) {  // 6.
         Real scaled_tau = 0, true_tau = 0;
         for (std::size_t i = 0; i < slabs.size(); ++i) {
@@ -2341,9 +2348,25 @@ void LayeredSurface<Real>::solve_ambient() {
 //     D = (I - R_A S_B)^{-1} T_A a0 c,   U = S_B D
 // (A's reflection of up-going light back down is R_A: a bare slab is the same seen from either side).
 template <class Real>
-void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack, const Slab<Real>& slab,
+void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack, const std::vector<Slab<Real>>& slabs,
                                         const LayerOptions& options, const std::vector<Real>& depths) {
     using detail::Matrix;
+    if (beam_) {  // through a stack, slab by slab (the depth on a joint in the slab above it)
+        for (const Real t : depths) {
+            std::size_t j = 0;
+            Real top = 0;  // the true optical depth of slab j's top
+            while (j + 1 < slabs.size() && t > top + slabs[j].optical_thickness()) top += slabs[j++].optical_thickness();
+            beam_depths_.push_back(beam_depth(slabs[j], options, std::fmin(t - top, slabs[j].optical_thickness())));
+            beam_depths_.back().depth = t;
+            beam_depths_.back().slab = j;
+        }
+        return;
+    }
+    if (slabs.size() > 1)  // (validate_stack let only stacks whose beam is a source through)
+        detail::fail_domain_error("stratum: request.depths in a stack: the beam could not be a source (a slab thinner "
+                                  "than sqrt(eps) times the smallest ordinate, or a phase function aliased on the "
+                                  "ordinates); solve with more ordinates or thicker slabs");
+    const Slab<Real>& slab = slabs[0];
     const std::size_t m = q_.size();
     const Matrix<Real> r21 = detail::mode_matrix(top_ops_->R21(), 0);
     const detail::StackMode<Real> whole = detail::stack_mode(stack, *bottom_ops_, q_, 0);
@@ -2351,10 +2374,6 @@ void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack
     detail::lu_solve(detail::lu_factor(detail::one_minus_product(r21, detail::as_matrix(m, whole.lower.reflection_down))), a0);
     const ComponentOperators<Real> bottom = detail::interface_component(*bottom_ops_, 0);
     const Real tau = slab.optical_thickness();
-    if (beam_) {
-        for (const Real t : depths) beam_depths_.push_back(beam_depth(slab, options, t));
-        return;
-    }
     for (const Real t : depths) {
         const detail::SlabModes<Real> above = detail::prepare_slab(slab, q_, 1, options.delta_m, t);
         const detail::SlabModes<Real> below = detail::prepare_slab(slab, q_, 1, options.delta_m, tau - t);
@@ -2416,22 +2435,29 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::bea
     Workspace ws;
     const detail::BeamField<Real>& f = beam_field(mu_i, 1, ws);
     const std::size_t m = q_.size();
-    const Real two_pi = 2 * detail::pi_v<Real>, x = top_face().internal_cosine(mu_i);
-    const Real tau = beam_->slabs[0].optical_thickness();  // (one slab: depths need one)
+    const Real two_pi = 2 * detail::pi_v<Real>;
     detail::BeamResponse<Real> a, b;
     detail::Matrix<Real> rhs(m, 1);
-    std::vector<Real> d0(m), w(m), s_b(m);
-    for (std::size_t n = 0; n < m; ++n) d0[n] = f.d[n], w[n] = f.w[n];
+    std::vector<Real> s_b(m);
     for (const BeamDepth& d : beam_depths_) {
         Real fluence = 0, net = 0;
         if (f.lit()) {
-            const Real down_at = std::exp(-d.scaled_depth / x);
-            const Real up_at = std::isinf(tau) ? Real(0) : std::exp(-(tau - d.scaled_depth) / x);
-            d.above.respond(x, 1, a, ws.scratch);
-            d.below.respond(x, 1, b, ws.scratch);
+            // slab j's beam (cosine x: 0 where it does not reach the slab), and the diffuse light entering the slab
+            // from above (d0) and from below (w), mode 0
+            const std::size_t j = d.slab;
+            const Real x = f.x[j], tau = beam_->slabs[j].optical_thickness();
+            const Real* d0 = f.d.data() + j * m;
+            const Real* w = f.w.data() + j * m;
+            const Real down_at = x > 0 ? std::exp(-d.scaled_depth / x) : Real(0);
+            const Real up_at = !(x > 0) || std::isinf(tau) ? Real(0) : std::exp(-(tau - d.scaled_depth) / x);
+            a.up.assign(m, Real(0)), a.down.assign(m, Real(0)), b.up.assign(m, Real(0)), b.down.assign(m, Real(0));
+            if (x > 0) {
+                d.above.respond(x, 1, a, ws.scratch);
+                d.below.respond(x, 1, b, ws.scratch);
+            }
             for (std::size_t n = 0; n < m; ++n) {
-                Real sa = f.flux_down[0] * a.down[n] + f.flux_up[0] * up_at * a.up[n],
-                     sb = f.flux_down[0] * down_at * b.up[n] + f.flux_up[0] * b.down[n];
+                Real sa = f.flux_down[j] * a.down[n] + f.flux_up[j] * up_at * a.up[n],
+                     sb = f.flux_down[j] * down_at * b.up[n] + f.flux_up[j] * b.down[n];
                 for (std::size_t i = 0; i < m; ++i) sa += d.t_a(n, i) * d0[i], sb += d.t_b(n, i) * w[i];
                 rhs(n, 0) = sa;
                 s_b[n] = sb;
@@ -2446,9 +2472,11 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::bea
                 net += two_pi * q_.weights[n] * q_.nodes[n] * (rhs(n, 0) - up);
             }
             // the beam itself (delta-M's: with the forward peak, as the fluxes)
-            const Real going_down = f.flux_down[0] * down_at, going_up = f.flux_up[0] * up_at;
-            fluence += (going_down + going_up) / x;
-            net += going_down - going_up;
+            if (x > 0) {
+                const Real going_down = f.flux_down[j] * down_at, going_up = f.flux_up[j] * up_at;
+                fluence += (going_down + going_up) / x;
+                net += going_down - going_up;
+            }
         }
         out.push_back({d.depth, fluence, net});
     }
