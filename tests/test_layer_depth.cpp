@@ -127,11 +127,7 @@ TEST_CASE("depths are validated; outside (0, 1] the profile is empty") {
                          doctest::Contains("request.depths[1]"), std::invalid_argument);
     CHECK_THROWS_WITH_AS(solve_layer(slab, open, open, ordinates(4), at_depths({-0.1})), doctest::Contains("request.depths[0]"),
                          std::invalid_argument);
-    // Through a stack: specular faces only (the beam a source), depths up to the slabs' total thickness.
-    const Boundary<double> rough = RoughDielectric<double>(0.3, 1.0, 1.4), inside = Boundary<double>::index_matched(1.4);
-    CHECK_THROWS_WITH_AS(solve_stack<double>(rough, {slab, slab}, {inside}, SmoothDielectric<double>(1.4, 1.0),
-                                             ordinates(4), at_depths({0.5})),
-                         doctest::Contains("specular faces"), std::invalid_argument);
+    // Through a stack: depths up to the slabs' total thickness.
     CHECK_THROWS_WITH_AS(solve_stack<double>(open, {slab, slab}, {open}, open, ordinates(4), at_depths({0.5, 2.5})),
                          doctest::Contains("request.depths[1]"), std::invalid_argument);
     CHECK_NOTHROW(solve_stack<double>(open, {slab, slab}, {open}, open, ordinates(4), at_depths({0.5, 2.0})));
@@ -205,5 +201,40 @@ TEST_CASE("through a stack: slab by slab, the net flux conserved across refracti
         CHECK(std::fabs(p[0].net_flux - p[1].net_flux) < 1e-9);
         CHECK(std::fabs(p[2].net_flux - p[3].net_flux) < 1e-9);
         CHECK(std::fabs(p[1].net_flux - p[2].net_flux - absorbed) < 1e-8);
+    }
+}
+
+TEST_CASE("through a stack under a rough top: the adding of the parts above and below the depth") {
+    // Stam's top (RMS slope 0.3, air | 1.4) over two slabs joined by a refracting face (1.4 | 1.38) and a smooth
+    // bottom to air. Non-absorbing: the net flux is T at every depth, on both sides of the joint (measured 4e-15;
+    // not 1 - R at the top: the rough face's shadowing loses light, README, known limitations). Two equal slabs joined by a matched face give the one slab's profile (measured 1e-15).
+    const Boundary<double> top = RoughDielectric<double>(0.3, 1.0, 1.4);
+    const std::vector<Slab<double>> clear{Slab<double>(1.0, 0.8, 0.7), Slab<double>(1.0, 0.9, 1.5)};
+    const std::vector<double> at{0.0, 0.3, 0.7, 0.7 + 1e-9, 1.4, 2.2};
+    const auto stack = solve_stack<double>(top, clear, {SmoothDielectric<double>(1.4, 1.38)}, SmoothDielectric<double>(1.38, 1.0),
+                                           ordinates(12), at_depths(at));
+    for (const double mu : {1.0, 0.4}) {
+        const auto p = stack.depth_profile(mu);
+        REQUIRE(p.size() == at.size());
+        INFO("mu " << mu);
+        for (const auto& x : p) {
+            CHECK(x.fluence > 0);
+            CHECK(std::fabs(x.net_flux - stack.transmittance(mu)) < 1e-12);
+        }
+    }
+    const Slab<double> half(0.9, 0.7, 0.6), whole(0.9, 0.7, 1.2);
+    const std::vector<double> depths{0.0, 0.3, 0.6, 0.9, 1.2};
+    const Boundary<double> bottom = SmoothDielectric<double>(1.4, 1.0);
+    const auto one = solve_layer(whole, top, bottom, ordinates(12), at_depths(depths));
+    const auto two = solve_stack<double>(top, {half, half}, {Boundary<double>::index_matched(1.4)}, bottom, ordinates(12),
+                                         at_depths(depths));
+    for (const double mu : {1.0, 0.5}) {
+        const auto a = one.depth_profile(mu), b = two.depth_profile(mu);
+        REQUIRE(a.size() == b.size());
+        for (std::size_t j = 0; j < a.size(); ++j) {
+            INFO("mu " << mu << " depth " << a[j].depth);
+            CHECK(stratum_test::close_rel(b[j].fluence, a[j].fluence, 1e-12));
+            CHECK(std::fabs(b[j].net_flux - a[j].net_flux) < 1e-12);
+        }
     }
 }

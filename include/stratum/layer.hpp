@@ -125,9 +125,9 @@ struct LayerRequest {
     std::vector<Real> incidence;
     /// Optical depths in [0, tau], measured from the top of the layer (true, not delta-M scaled; through a stack,
     /// the sum of the slabs' thicknesses above plus the depth into the slab), at which depth_profile() will give
-    /// the fluence rate and the net flux (their fields are prepared here: two slab solves of mode 0 per depth). A
-    /// stack of several slabs needs specular faces (smooth or index-matched, over a specular face or a Lambertian
-    /// floor), where the beam is a source; a depth on a joint is taken in the slab above it.
+    /// the fluence rate and the net flux (their fields are prepared here: two slab solves of mode 0 per depth, and
+    /// in a stack under a rough top the adding of the slabs above and below). A depth on a joint is taken in the
+    /// slab above it.
     std::vector<Real> depths;
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
     int max_modes = 0;
@@ -566,7 +566,7 @@ bool beam_is_a_source(const Boundary<Real>& top, const std::vector<Boundary<Real
 
 /// Rejects inconsistent input (solve_stack's contract) through fail_invalid_argument: counts, the tolerance, the
 /// number of interior faces, indices that disagree across a slab, incidence cosines outside (0, 1], depths outside
-/// the layer or in a stack whose beam is not a source.
+/// the layer.
 template <class Real>
 void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                     const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
@@ -595,9 +595,6 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
     for (std::size_t j = 0; j < request.incidence.size(); ++j)
         require_closed(("request.incidence[" + std::to_string(j) + "]").c_str(), request.incidence[j],
                        std::nextafter(Real(0), Real(1)), Real(1));
-    if (!request.depths.empty() && slabs.size() != 1 && !beam_is_a_source(top, interior, bottom))
-        fail_invalid_argument("stratum: request.depths in a stack of " + std::to_string(slabs.size()) +
-                              " slabs needs specular faces (smooth or index-matched; a Lambertian floor below)");
     Real total = 0;
     for (const Slab<Real>& slab : slabs) total += slab.optical_thickness();
     for (std::size_t j = 0; j < request.depths.size(); ++j)
@@ -2362,28 +2359,45 @@ void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack
         }
         return;
     }
-    if (slabs.size() > 1)  // (validate_stack let only stacks whose beam is a source through)
-        detail::fail_domain_error("stratum: request.depths in a stack: the beam could not be a source (a slab thinner "
-                                  "than sqrt(eps) times the smallest ordinate, or a phase function aliased on the "
-                                  "ordinates); solve with more ordinates or thicker slabs");
-    const Slab<Real>& slab = slabs[0];
     const std::size_t m = q_.size();
     const Matrix<Real> r21 = detail::mode_matrix(top_ops_->R21(), 0);
     const detail::StackMode<Real> whole = detail::stack_mode(stack, *bottom_ops_, q_, 0);
     Matrix<Real> a0 = Matrix<Real>::identity(m);
     detail::lu_solve(detail::lu_factor(detail::one_minus_product(r21, detail::as_matrix(m, whole.lower.reflection_down))), a0);
     const ComponentOperators<Real> bottom = detail::interface_component(*bottom_ops_, 0);
-    const Real tau = slab.optical_thickness();
+    const auto slab_mode0 = [&](std::size_t i) { return detail::slab_mode(stack.slabs[i], q_, 0); };
+    const auto joint = [&](std::size_t i) { return detail::interface_component(*stack.interior[i], 0); };
     for (const Real t : depths) {
-        const detail::SlabModes<Real> above = detail::prepare_slab(slab, q_, 1, options.delta_m, t);
-        const detail::SlabModes<Real> below = detail::prepare_slab(slab, q_, 1, options.delta_m, tau - t);
-        const ComponentOperators<Real> a = detail::slab_mode(above, q_, 0);
-        const ComponentOperators<Real> b = add_components(detail::slab_mode(below, q_, 0), bottom);
+        // Slab j holds depth t (on a joint: the slab above), t - top into it; A is everything above the cut (the
+        // slabs and joints above slab j, then its part above t), B everything below (its part below t, the joints
+        // and slabs below, the bottom face).
+        std::size_t j = 0;
+        Real top = 0, scaled_top = 0;
+        while (j + 1 < slabs.size() && t > top + slabs[j].optical_thickness()) {
+            top += slabs[j].optical_thickness();
+            scaled_top += stack.slabs[j].slab.optical_thickness();
+            ++j;
+        }
+        const Real tau = slabs[j].optical_thickness(), into = std::fmin(t - top, tau);
+        const detail::SlabModes<Real> above = detail::prepare_slab(slabs[j], q_, 1, options.delta_m, into);
+        const detail::SlabModes<Real> below = detail::prepare_slab(slabs[j], q_, 1, options.delta_m, tau - into);
+        ComponentOperators<Real> a = detail::slab_mode(above, q_, 0);
+        if (j > 0) {
+            ComponentOperators<Real> upper = slab_mode0(0);
+            for (std::size_t i = 0; i < j; ++i) {
+                upper = add_components(upper, joint(i));
+                if (i + 1 < j) upper = add_components(upper, slab_mode0(i + 1));
+            }
+            a = add_components(upper, a);
+        }
+        ComponentOperators<Real> b = detail::slab_mode(below, q_, 0);
+        for (std::size_t i = j; i < stack.interior.size(); ++i) b = add_components(add_components(b, joint(i)), slab_mode0(i + 1));
+        b = add_components(b, bottom);
         const Matrix<Real> s_b = detail::as_matrix(m, b.reflection_down);
         Matrix<Real> down = detail::multiply(detail::as_matrix(m, a.transmission_down), a0);
         detail::lu_solve(detail::lu_factor(detail::one_minus_product(detail::as_matrix(m, a.reflection_up), s_b)), down);
         Matrix<Real> up = detail::multiply(s_b, down);
-        depth_ops_.push_back({t, above.slab.optical_thickness(), std::move(down), std::move(up)});
+        depth_ops_.push_back({t, scaled_top + above.slab.optical_thickness(), std::move(down), std::move(up)});
     }
 }
 
