@@ -645,13 +645,7 @@ void refracting_stacks() {
     int count = 0;
     for (const Case& c : cases)
         for (const double mu0 : {1.0, 0.5, 0.2}) {
-            mc_stack::Stack s;
-            s.eta = c.eta;
-            s.tau = c.tau;
-            s.albedo = c.albedo;
-            s.g = c.g;
-            s.n_below = c.below;
-            s.floor_albedo = c.floor;
+            const mc_stack::Stack s{1.0, c.below, c.eta, c.tau, c.albedo, c.g, c.floor};
             const mc_stack::Result mc = mc_stack::simulate(s, mu0, 2000000, 7);
             std::vector<stratum::Slab<double>> slabs;
             std::vector<stratum::Boundary<double>> joints;

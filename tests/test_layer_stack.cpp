@@ -241,12 +241,7 @@ TEST_CASE("refracting stacks over a Lambertian floor against the photon Monte Ca
                           {{1.5, 1.4, 1.38}, {0.2, 0.5, 4.0}, {0.3, 0.9, 0.99}, {0.0, 0.8, 0.85}, 0.6}};
     for (const Case& c : cases)
         for (const double mu0 : {1.0, 0.4}) {
-            mc_stack::Stack s;
-            s.eta = c.eta;
-            s.tau = c.tau;
-            s.albedo = c.albedo;
-            s.g = c.g;
-            s.floor_albedo = c.floor;
+            const mc_stack::Stack s{1.0, 1.0, c.eta, c.tau, c.albedo, c.g, c.floor};
             const mc_stack::Result mc = mc_stack::simulate(s, mu0, 1000000, 5);
             std::vector<Slab<double>> slabs;
             std::vector<Boundary<double>> joints;
