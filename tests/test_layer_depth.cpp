@@ -238,3 +238,20 @@ TEST_CASE("through a stack under a rough top: the adding of the parts above and 
         }
     }
 }
+
+TEST_CASE("no light below a totally reflecting joint: the fluence there is 0, not rounding's -3e-15") {
+    // Found by fuzz_layer (its input in tests/fuzz/corpus/fuzz_layer/stack-depth-negative-fluence): two slabs of
+    // tau ~1e-9 (so the beam is spread over the ordinates) under a joint from n 2.98 into 0.5; at the bottom the
+    // fluence summed to -2.96e-15.
+    LayerRequest<double> request;
+    request.depths = {0.0, 1.02778e-09, 2.02778e-09};
+    const auto layer = solve_stack<double>(SmoothDielectric<double>(1.87739, 2.97899),
+                                           {Slab<double>(0.00390822, 0.99, 1.02778e-09), Slab<double>(0.0, 0.0, 1e-9)},
+                                           {SmoothDielectric<double>(2.97899, 0.5)}, SmoothDielectric<double>(0.5, 2.89123),
+                                           ordinates(5), request);
+    for (const auto& p : layer.depth_profile(0.131265)) {
+        INFO("depth " << p.depth);
+        CHECK(p.fluence >= 0);
+        CHECK(std::isfinite(p.net_flux));
+    }
+}

@@ -2492,7 +2492,7 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::bea
                 net += going_down - going_up;
             }
         }
-        out.push_back({d.depth, fluence, net});
+        out.push_back({d.depth, non_negative(fluence), net});  // (rounding: -3e-15 where no light reaches)
     }
     return out;
 }
@@ -2542,7 +2542,7 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::dep
                 net += going_down - going_up;
             }
         }
-        out.push_back({d.depth, fluence, net});
+        out.push_back({d.depth, non_negative(fluence), net});  // (rounding: -3e-15 where no light reaches)
     }
     return out;
 }

@@ -1,8 +1,9 @@
 // libFuzzer target over the layer solver: a slab (albedo, g, thickness) between two faces (rough, smooth or
 // index matched) at a few ordinates; then, chosen by the input's last byte (so that the older corpus keeps its
 // meaning: an exhausted input reads 0), the same slab with a phase function given by three arbitrary moments
-// (not necessarily positive definite) or over a Lambertian floor. Promises checked: bad parameters throw std::invalid_argument; otherwise
-// every output is finite and non-negative. Energy conservation is NOT checked here: with light nearly trapped
+// (not necessarily positive definite) or over a Lambertian floor; then, chosen by the next byte, a second slab
+// under a joint of any kind, with the fields at three depths. Promises checked: bad parameters throw
+// std::invalid_argument; otherwise every output is finite and non-negative. Energy conservation is NOT checked here: with light nearly trapped
 // between two faces (total internal reflection at both, a nearly transparent slab, a rough face narrower than
 // the ordinates), the discrete field can create energy (up to half the incident flux measured; README, known
 // limitations; tests/test_layer_inputs.cpp tracks one such layer as an expected failure).
@@ -10,6 +11,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 #include "fuzz_input.hpp"
 
@@ -46,7 +48,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                          : slab;
         const stratum::Boundary<double> floor_or_bottom =
             variant == 2 ? stratum::Boundary<double>::lambertian(in.in(0, 1), n2) : bottom;
-        const auto layer = stratum::solve_layer(medium, top, floor_or_bottom, options);
+        // A second slab under a joint (n2 | n4), with depths at the top, the joint and the bottom.
+        const bool stacked = in.byte() % 2 == 1;
+        std::vector<stratum::Slab<double>> slabs{medium};
+        std::vector<stratum::Boundary<double>> joints;
+        stratum::Boundary<double> lowest = floor_or_bottom;
+        stratum::LayerRequest<double> request;
+        if (stacked) {
+            const double n4 = in.log_in(0.5, 3);
+            joints.push_back(face(in, n2, n4));
+            slabs.emplace_back(in.in(0, 1), in.in(-0.95, 0.99), in.log_in(1e-9, 1e3));
+            lowest = variant == 2 ? stratum::Boundary<double>::lambertian(in.in(0, 1), n4) : face(in, n4, n3);
+            const double total = slabs[0].optical_thickness() + slabs[1].optical_thickness();
+            request.depths = {0.0, slabs[0].optical_thickness(), total};
+        }
+        const auto layer = stratum::solve_stack<double>(top, slabs, joints, lowest, options, request);
+        for (const auto& p : layer.depth_profile(mu))
+            require(std::isfinite(p.fluence) && p.fluence >= 0 && std::isfinite(p.net_flux), "fields at depth finite, fluence >= 0");
         const auto a = layer.reflectance(mu);
         const double t = layer.transmittance(mu);
         require(std::isfinite(a.surface) && std::isfinite(a.subsurface) && std::isfinite(t), "finite reflectance and transmittance");
