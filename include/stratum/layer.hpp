@@ -971,9 +971,10 @@ public:
     const Boundary<Real>& top() const noexcept { return top_; }
     const Boundary<Real>& bottom() const noexcept { return bottom_; }
 
-    /// Inside the slab at a requested depth (LayerRequest::depths), for a beam of unit irradiance arriving with
-    /// cosine mu_i in (0, 1]: the fluence rate phi = int L dw over all directions (4 pi times the mean radiance;
-    /// for a beam alone, its flux over its cosine) and the net flux downwards, both per unit incident flux.
+    /// Inside the layer at a requested depth (LayerRequest::depths; through a stack, in the slab holding it), for a
+    /// beam of unit irradiance arriving with cosine mu_i in (0, 1]: the fluence rate phi = int L dw over all
+    /// directions (4 pi times the mean radiance; for a beam alone, its flux over its cosine; >= 0) and the net flux
+    /// downwards, both per unit incident flux.
     /// Conservation: where nothing is absorbed the net flux is the same at every depth, and d(net flux)/dtau =
     /// -(1 - albedo) phi. Between specular faces the beam (with delta-M's forward peak) is exact at the true angle,
     /// as in the fluxes; elsewhere it is part of the discrete field. Empty for mu_i outside (0, 1].
