@@ -28,6 +28,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "adding.hpp"
@@ -2016,8 +2017,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     // function is aliased on the ordinates (solve_modes), the beam is spread over the ordinates instead, with its
     // energy made exact (scattering_scale).
     bool beam = detail::beam_is_a_source(top, interior, bottom) &&
-                (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs) ||
-                 (slabs.size() > 1 && !request.depths.empty()));
+                (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
     for (const detail::SlabModes<Real>& p : stack.slabs)
         beam = beam && p.slab.optical_thickness() >= std::sqrt(std::numeric_limits<Real>::epsilon()) * s.q_.nodes.front();
     if (beam) {
@@ -2349,11 +2349,16 @@ template <class Real>
 void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack, const std::vector<Slab<Real>>& slabs,
                                         const LayerOptions& options, const std::vector<Real>& depths) {
     using detail::Matrix;
-    if (beam_) {  // through a stack, slab by slab (the depth on a joint in the slab above it)
+    // The slab holding depth t (on a joint: the slab above) and the true optical depth of its top.
+    const auto holding = [&](Real t) {
+        std::size_t j = 0;
+        Real top = 0;
+        while (j + 1 < slabs.size() && t > top + slabs[j].optical_thickness()) top += slabs[j++].optical_thickness();
+        return std::pair<std::size_t, Real>{j, top};
+    };
+    if (beam_) {  // through a stack, slab by slab
         for (const Real t : depths) {
-            std::size_t j = 0;
-            Real top = 0;  // the true optical depth of slab j's top
-            while (j + 1 < slabs.size() && t > top + slabs[j].optical_thickness()) top += slabs[j++].optical_thickness();
+            const auto [j, top] = holding(t);
             beam_depths_.push_back(beam_depth(slabs[j], options, std::fmin(t - top, slabs[j].optical_thickness())));
             beam_depths_.back().depth = t;
             beam_depths_.back().slab = j;
@@ -2372,13 +2377,9 @@ void LayeredSurface<Real>::solve_depths(const detail::PreparedStack<Real>& stack
         // Slab j holds depth t (on a joint: the slab above), t - top into it; A is everything above the cut (the
         // slabs and joints above slab j, then its part above t), B everything below (its part below t, the joints
         // and slabs below, the bottom face).
-        std::size_t j = 0;
-        Real top = 0, scaled_top = 0;
-        while (j + 1 < slabs.size() && t > top + slabs[j].optical_thickness()) {
-            top += slabs[j].optical_thickness();
-            scaled_top += stack.slabs[j].slab.optical_thickness();
-            ++j;
-        }
+        const auto [j, top] = holding(t);
+        Real scaled_top = 0;
+        for (std::size_t i = 0; i < j; ++i) scaled_top += stack.slabs[i].slab.optical_thickness();
         const Real tau = slabs[j].optical_thickness(), into = std::fmin(t - top, tau);
         const detail::SlabModes<Real> above = detail::prepare_slab(slabs[j], q_, 1, options.delta_m, into);
         const detail::SlabModes<Real> below = detail::prepare_slab(slabs[j], q_, 1, options.delta_m, tau - into);
