@@ -201,15 +201,50 @@ BENCHMARK(BM_layer_eval_subsurface_brdf_cached_incidence)->Arg(8)->Arg(16)->Arg(
 
 }  // namespace
 
-// reflectance(mu) (surface and subsurface) at an incidence computed on the fly, and at a requested one.
+// reflectance(mu) (surface and subsurface) at an incidence computed on the fly, at a requested one, and on the
+// fly from tabulated faces (LayerRequest::tabulate_faces); transmittance(mu) on the fly and from tabulated faces.
 void BM_layer_eval_reflectance(benchmark::State& state) {
     stratum::LayerRequest<Real> r;
     if (state.range(1) == 1) r.incidence = {0.8};
+    r.tabulate_faces = state.range(1) == 2;
     const auto layer = skin(static_cast<int>(state.range(0)), r);
     for (auto _ : state) benchmark::DoNotOptimize(layer.reflectance(0.8).total());
-    state.SetLabel(state.range(1) == 1 ? "precomputed incidence" : "on the fly");
+    state.SetLabel(state.range(1) == 1 ? "precomputed incidence" : state.range(1) == 2 ? "tabulated faces" : "on the fly");
 }
-BENCHMARK(BM_layer_eval_reflectance)->Args({16, 0})->Args({16, 1})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_layer_eval_reflectance)->Args({16, 0})->Args({16, 1})->Args({16, 2})->Unit(benchmark::kMicrosecond);
+
+void BM_layer_eval_transmittance(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.tabulate_faces = state.range(1) == 2;
+    const auto layer = skin(static_cast<int>(state.range(0)), r);
+    for (auto _ : state) benchmark::DoNotOptimize(layer.transmittance(0.8));
+    state.SetLabel(state.range(1) == 2 ? "tabulated faces" : "on the fly");
+}
+BENCHMARK(BM_layer_eval_transmittance)->Args({16, 0})->Args({16, 2})->Unit(benchmark::kMicrosecond);
+
+// brdf (surface and subsurface) at true angles, the incidence new on every call, from tabulated faces (compare
+// BM_layer_eval_subsurface_brdf, the integrals).
+void BM_layer_eval_brdf_tabulated(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.tabulate_faces = true;
+    const auto layer = skin(static_cast<int>(state.range(0)), r);
+    stratum::LayeredSurface<Real>::Workspace ws;
+    const auto wo = stratum::spherical_direction(0.5, 2.0);
+    int i = 0;
+    for (auto _ : state) {
+        const auto wi = stratum::spherical_direction(0.8 + 1e-9 * (i++ % 1000), 0.0);
+        benchmark::DoNotOptimize(layer.brdf(wi, wo, ws));
+    }
+}
+BENCHMARK(BM_layer_eval_brdf_tabulated)->Arg(8)->Arg(16)->Arg(24)->Unit(benchmark::kMicrosecond);
+
+// The solve with the faces tabulated (all outputs), beside BM_layer_solve_full.
+void BM_layer_solve_full_tabulated(benchmark::State& state) {
+    stratum::LayerRequest<Real> r;
+    r.tabulate_faces = true;
+    for (auto _ : state) benchmark::DoNotOptimize(skin(static_cast<int>(state.range(0)), r));
+}
+BENCHMARK(BM_layer_solve_full_tabulated)->Arg(16)->Arg(24)->Unit(benchmark::kMillisecond);
 
 namespace {
 

@@ -137,6 +137,19 @@ struct LayerRequest {
     /// e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode; docs/physics.md section 6) is solved as
     /// semi-infinite when neither transmission nor transmittance is requested.
     Real tolerance = 0;
+    /// Tabulate, at the solve, the rough faces' couplings between every outside cosine and the ordinates (the
+    /// azimuthal integrals of their BTDF that brdf, btdf, reflectance and transmittance compute at an incidence or exit
+    /// not listed in `incidence`), and the top face's hemispherical reflectance and the faces' transmittance (else
+    /// tabulated at the first evaluation), so that evaluation at any angle costs microseconds and no first evaluation
+    /// builds a table (README, speed table). The couplings are interpolated by cubic polynomials in
+    /// (2 / pi) asin(sqrt(mu)) (detail::MuTable, 128 intervals; the first two keep the integrals); each table is
+    /// checked at the solve against the integrals at 16 points between its nodes, and a face whose lobe is too narrow
+    /// for it (sigma 0.05 at n 1 | 1.4; a nearly index-matched face, whose BTDF nears a delta) keeps the integrals, as
+    /// does light from a denser medium (an onset at the critical cosine): see detail::CouplingTable and
+    /// tabulated_couplings(). What the kept tables change in the outputs is measured in tests/test_layer_tabulated.cpp.
+    /// Cost at the solve: for Stam's skin layer one table (its bottom is its top turned over, and the BTDF is
+    /// reciprocal), about 145 on-the-fly evaluations' worth, and the entry tables.
+    bool tabulate_faces = false;
 };
 
 /// A boundary of a layer: rough (Beckmann microfacets), specular (smooth or index-matched), or an opaque
@@ -212,32 +225,61 @@ Real spacing_at(const std::vector<Real>& nodes, Real x) noexcept {
     return j > 0 ? nodes[j] - nodes[j - 1] : nodes.size() > 1 ? nodes[1] - nodes[0] : Real(1);
 }
 
-/// A function of mu in (0, 1] tabulated at N + 1 points equispaced in t = sqrt(mu) and interpolated by cubic
-/// Lagrange polynomials in t on the 4 nearest points: the hemispherical transmittance of a rough boundary,
-/// which costs a 2-D integral per value and changes fastest near grazing (its limit at mu -> 0+ differs from
-/// its value at mu = 0, which is the point t = 0 is given instead). Error: tests/test_layer.cpp measures it.
+/// A function of mu in (0, 1], or `width` of them, tabulated at N + 1 points equispaced in t = sqrt(mu) and
+/// interpolated by cubic Lagrange polynomials in t on the 4 nearest points: the hemispherical transmittance and
+/// reflectance of a rough boundary, which cost a 2-D integral per value, and a rough face's coupling to the ordinates
+/// (CouplingTable); they change fastest near grazing (the limit at mu -> 0+ differs from the value at mu = 0, which
+/// is the point t = 0 is given instead). Error: tests/test_layer.cpp and tests/test_layer_tabulated.cpp measure it.
 template <class Real>
 struct MuTable {
-    std::vector<Real> values;  // f((j / N)^2), j = 0..N (j = 0: the limit mu -> 0+)
+    // The table's variable: t = sqrt(mu), or t = (2 / pi) asin(sqrt(mu)) (`arcsine`: also smooth where a function
+    // of mu behaves like sin^k(theta) = (1 - mu^2)^{k/2} at the normal, as the k-th azimuthal mode of a BSDF does).
+    bool arcsine = false;
+    int width = 1;
+    std::vector<Real> values;  // f(mu(j / N))[v] at j width + v, j = 0..N (j = 0: the limit mu -> 0+)
+    // f(mu, out) writes the width values at mu.
     template <class F>
-    void build(int intervals, F f) {
-        values.resize(static_cast<std::size_t>(intervals) + 1);
-        for (int j = 0; j <= intervals; ++j) {
-            const Real t = Real(j) / Real(intervals);
-            values[static_cast<std::size_t>(j)] = f(j == 0 ? Real(1e-12) : t * t);
-        }
+    void build(int intervals, int values_per_point, F f) {
+        width = values_per_point;
+        values.resize(static_cast<std::size_t>(intervals + 1) * static_cast<std::size_t>(width));
+        for (int j = 0; j <= intervals; ++j)
+            f(j == 0 ? Real(1e-12) : cosine(Real(j) / Real(intervals)),
+              values.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(width));
     }
-    Real operator()(Real mu) const noexcept {
-        const int n = static_cast<int>(values.size()) - 1;
-        const Real x = std::sqrt(std::fmin(std::fmax(mu, Real(0)), Real(1))) * Real(n);  // in units of 1 / N
+    Real cosine(Real t) const noexcept {
+        if (!arcsine) return t * t;
+        const Real s = std::sin(pi_v<Real> / 2 * t);
+        return t >= 1 ? Real(1) : s * s;
+    }
+    Real parameter(Real mu) const noexcept {
+        const Real m = std::fmin(std::fmax(mu, Real(0)), Real(1));
+        return arcsine ? Real(2) / pi_v<Real> * std::asin(std::sqrt(m)) : std::sqrt(m);
+    }
+    int intervals() const noexcept { return static_cast<int>(values.size()) / width - 1; }
+    // The first `count` values at mu into out.
+    void interpolate(Real mu, Real* out, int count) const noexcept {
         Real w[4];
-        const LagrangeWindow window = lagrange_weights(Points{}, n + 1, x, 4, w);
-        Real sum = 0;
-        for (int a = 0; a < 4; ++a) sum += w[a] * values[static_cast<std::size_t>(window.first + a)];
-        return sum;
+        const Real* row = window(mu, w);
+        const std::size_t stride = static_cast<std::size_t>(width);
+        for (std::size_t v = 0; v < static_cast<std::size_t>(count); ++v)
+            out[v] = w[0] * row[v] + w[1] * row[stride + v] + w[2] * row[2 * stride + v] + w[3] * row[3 * stride + v];
+    }
+    // Value v at mu.
+    Real operator()(Real mu, int v = 0) const noexcept {
+        Real w[4];
+        const Real* row = window(mu, w) + v;
+        const std::size_t stride = static_cast<std::size_t>(width);
+        return w[0] * row[0] + w[1] * row[stride] + w[2] * row[2 * stride] + w[3] * row[3 * stride];
     }
 
 private:
+    // The Lagrange weights at mu into w, and the first of their 4 points' rows.
+    const Real* window(Real mu, Real* w) const noexcept {
+        const int n = intervals();
+        const Real x = parameter(mu) * Real(n);  // in units of 1 / N
+        const LagrangeWindow lw = lagrange_weights(Points{}, n + 1, x, 4, w);
+        return values.data() + static_cast<std::size_t>(lw.first) * static_cast<std::size_t>(width);
+    }
     struct Points {  // the table's points t_j = j / N, in units of 1 / N
         Real operator[](std::size_t j) const noexcept { return static_cast<Real>(j); }
     };
@@ -256,42 +298,86 @@ bool turned_over(const Boundary<Real>& top, const Boundary<Real>& bottom) noexce
 }
 
 /// The directional-hemispherical transmittance of a boundary for light arriving at |cosine| mu from one side (the
-/// outside of a layer: above a top face, below a bottom face). A rough face's 2-D integral is tabulated on first
-/// use (MuTable, 64 intervals; std::call_once keeps it thread-safe) and shared by every layer solved with one
-/// PreparedBoundary, so only the first evaluation pays for it. Exact below the first table interval, for a
-/// specular face, and for light from a denser medium: there T(mu) has an onset at the critical cosine, as steep as
-/// sigma is small, which no polynomial table resolves (found by fuzz_layer: n 1.88 | 0.50, sigma 7e-5, mu 0.996
-/// gave a transmittance 12% above the entering flux).
+/// outside of a layer: above a top face, below a bottom face), and its reflectance. A rough face's 2-D integral
+/// (which gives both) is tabulated on first use (MuTable, 64 intervals; std::call_once keeps it thread-safe) and
+/// shared by every layer solved with one PreparedBoundary, so only the first evaluation pays for it. Exact below the
+/// first table interval, for a specular face, and for light from a denser medium: there T(mu) has an onset at the
+/// critical cosine, as steep as sigma is small, which no polynomial table resolves (found by fuzz_layer: n 1.88 | 0.50,
+/// sigma 7e-5, mu 0.996 gave a transmittance 12% above the entering flux). The layer uses the tabulated
+/// transmittance always (to scale the light it lets in), the reflectance only with LayerRequest::tabulate_faces
+/// (else the integral at each mu).
 template <class Real>
 class EntryTransmittance {
 public:
     EntryTransmittance(const Boundary<Real>& boundary, Incidence side) : boundary_(boundary), side_(side) {}
 
-    Real operator()(Real mu) const {
-        const bool from_above = side_ == Incidence::from_above;
-        const Real signed_mu = from_above ? mu : -mu;
-        const Real eta_outside = from_above ? boundary_.eta_above() : boundary_.eta_below();
-        const Real eta_inside = from_above ? boundary_.eta_below() : boundary_.eta_above();
-        if (!boundary_.rough() || eta_outside > eta_inside || mu < grazing)
-            return boundary_.hemispherical_transmittance(signed_mu);
-        // The integrals with 12 Gauss nodes per panel instead of 16: within 4.4e-7 of the default's (measured at the
-        // table's points, sigma 0.005 to 2, n 1 | 1.1, 1.4, 2.5), 25 times below the table's own interpolation error
-        // (1.1e-5, tests/test_layer.cpp), in about 0.6 of the time (10 nodes: 1.1e-5 at sigma 0.1, n 2.5).
-        std::call_once(once_, [this, from_above] {
-            const RoughDielectric<Real>& face = *boundary_.rough_interface();
-            table_.build(intervals, [&](Real x) { return face.hemispherical_totals(from_above ? x : -x, 12).transmittance; });
-        });
-        const Real t = table_(mu);
-        return t < 0 ? Real(0) : t;
+    Real operator()(Real mu) const { return value(mu, false); }
+    Real reflectance(Real mu) const { return value(mu, true); }
+    // Builds the table now (where one serves), so that no later evaluation pays for it.
+    void prepare() const {
+        if (tabulated(Real(1))) build();
     }
 
 private:
+    bool tabulated(Real mu) const noexcept {
+        const bool from_above = side_ == Incidence::from_above;
+        const Real eta_outside = from_above ? boundary_.eta_above() : boundary_.eta_below();
+        const Real eta_inside = from_above ? boundary_.eta_below() : boundary_.eta_above();
+        return boundary_.rough() && !(eta_outside > eta_inside) && !(mu < grazing);
+    }
+    // The integrals with 12 Gauss nodes per panel instead of 16: within 4.4e-7 of the default's (measured at the
+    // table's points, sigma 0.005 to 2, n 1 | 1.1, 1.4, 2.5), 25 times below the table's own interpolation error
+    // (1.1e-5, tests/test_layer.cpp), in about 0.6 of the time (10 nodes: 1.1e-5 at sigma 0.1, n 2.5).
+    void build() const {
+        std::call_once(once_, [this] {
+            const RoughDielectric<Real>& face = *boundary_.rough_interface();
+            const bool from_above = side_ == Incidence::from_above;
+            table_.build(intervals, 2, [&](Real x, Real* out) {
+                const HemisphericalTotals<Real> a = face.hemispherical_totals(from_above ? x : -x, 12);
+                out[0] = a.transmittance;
+                out[1] = a.reflectance;
+            });
+        });
+    }
+    Real value(Real mu, bool reflected) const {
+        const Real signed_mu = side_ == Incidence::from_above ? mu : -mu;
+        if (!tabulated(mu))
+            return reflected ? boundary_.hemispherical_reflectance(signed_mu) : boundary_.hemispherical_transmittance(signed_mu);
+        build();
+        const Real t = table_(mu, reflected ? 1 : 0);
+        return t < 0 ? Real(0) : t;
+    }
+
     static constexpr int intervals = 64;
     static constexpr Real grazing = Real(1) / Real(intervals * intervals);  // below the first table interval
     Boundary<Real> boundary_;
     Incidence side_;
     mutable std::once_flag once_;
     mutable MuTable<Real> table_;
+};
+
+/// A rough face's couplings to a layer's ordinates, tabulated over the outside cosine (LayerRequest::tabulate_faces):
+/// for light crossing the face one way at |cosine| mu outside, I_k(mu <-> mu_m) for each ordinate m and mode k < K
+/// at [m K + k], then I_k(mu <-> mu_t) at mu's Snell cosine inside at [M K + k] ((M + 1) K values per point, MuTable
+/// in (2 / pi) asin(sqrt(mu)): mode k behaves like sin^k(theta) at the normal), times `scale`: one table serves
+/// both ways across a face whose BTDF is reciprocal, I^{t21}(mu_m -> mu) = (n_1 / n_2)^2 I^{t12}(mu -> mu_m)
+/// (interface_operators.hpp), and a bottom face that is the top turned over. Below `grazing` (the first two
+/// intervals, whose stencils would reach the point given the limit mu -> 0+) the integrals are computed.
+template <class Real>
+struct CouplingTable {
+    std::shared_ptr<const MuTable<Real>> table;  // null: not tabulated
+    Real scale = 1;
+    static constexpr int intervals = 128;
+    Real grazing = 1;
+    // The largest difference from the integrals at the check points, every mode's summed, relative to the flux
+    // the ordinates carry: sum_m w_m mu_m sum_k |Delta I_k(mu, mu_m)| / sum_m w_m mu_m I_0(mu, mu_m). Beyond `limit`
+    // the face keeps its integrals: a lobe too narrow for the table's nodes (sigma 0.05 at n 1 | 1.4: 43; every
+    // sigma at n 1 | 1.05, where the BTDF nears a delta: 1.1 at sigma 1, up to 1e140 at 0.02), against 1.1e-3 to
+    // 3.6e-3 for sigma 0.2 to 1 at n 1 | 1.4 and 1 | 2.5 (M = 16; tests/test_layer_tabulated.cpp measures what
+    // the kept tables change in the layer's outputs).
+    Real error = 0;
+    static constexpr Real limit = Real(5e-3);
+    bool holds(Real mu) const noexcept { return table && mu >= grazing; }
 };
 
 }  // namespace detail
@@ -824,7 +910,7 @@ class LayeredSurface {
 public:
     /// Scratch memory for evaluation (sized on first use).
     struct Workspace {
-        std::vector<Real> in, out, c, field, shape;
+        std::vector<Real> in, out, c, field, shape, row, row_all;
         // between specular faces (the beam as a source): the field of an incidence computed on the fly, the slab's
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
@@ -842,6 +928,14 @@ public:
     int ordinates() const noexcept { return static_cast<int>(q_.size()); }
     /// The number of Fourier modes actually solved (after the request's tolerance and cap).
     int modes() const noexcept { return modes_; }
+    /// With LayerRequest::tabulate_faces, how many couplings are tabulated (0 to 3: the top's for light entering and
+    /// leaving, the bottom's for light leaving); the others are integrated at each evaluation (a smooth face, light
+    /// from a denser medium, an output not requested, or a table that failed its check: detail::CouplingTable).
+    int tabulated_couplings() const noexcept {
+        int n = 0;
+        for (int i = 0; i < 3; ++i) n += couplings_[i].table ? 1 : 0;
+        return n;
+    }
     const Quadrature<Real>& quadrature() const noexcept { return q_; }
     LayerOutput outputs() const noexcept { return outputs_; }
     /// Per-mode operators of the whole layer on the ordinates, light arriving from above or below
@@ -1014,14 +1108,15 @@ private:
     BeamDepth beam_depth(const Slab<Real>& slab, const LayerOptions& options, Real t) const;
     std::vector<DepthPoint> beam_depth_profile(Real mu_i) const;
     void precompute_incidences();
+    void tabulate_faces();
 
 
     // The top face's hemispherical reflectance (an integral for a rough face), precomputed at the requested incidences
-    // when LayerOutput::surface_reflection was requested.
+    // when LayerOutput::surface_reflection was requested, tabulated with LayerRequest::tabulate_faces.
     Real surface_reflectance(Real mu_i) const {
         for (std::size_t j = 0; j < cached_surface_.size(); ++j)
             if (incidence_[j] == mu_i) return cached_surface_[j];
-        return top_.hemispherical_reflectance(mu_i);
+        return faces_tabulated_ ? top_entry_->reflectance(mu_i) : top_.hemispherical_reflectance(mu_i);
     }
 
     // Which way light crosses a face: into the layer from outside, or out of it.
@@ -1080,6 +1175,7 @@ private:
     };
     Face top_face() const noexcept { return Face{*this, false}; }
     Face bottom_face() const noexcept { return Face{*this, true}; }
+    detail::CouplingTable<Real> tabulate_couplings(const Face& face, Crossing c) const;
 
     // The internal field (K blocks of M) for incidence mu_i: Q_b c_k (reflection) or Q_e c_k (transmission).
     // The first `modes` modes only (fluxes need mode 0; its azimuthal integrals then take far fewer samples, and
@@ -1121,20 +1217,20 @@ private:
         const Real flux = top.transmittance_from_outside(mu_i);
         if (!(flux > 0)) return;
         Real specular_share = 1;
+        const Real mu_t = top.internal_cosine(mu_i);
         if (top.rough()) {
-            ws.in.resize(static_cast<std::size_t>(top.ops().modes()));
+            couplings(top, Crossing::entering, mu_i, mu_t, modes, ws);
             Real gauss = 0;
             for (std::size_t i = 0; i < m; ++i) {
-                top.transmission(Crossing::entering, mu_i, q_.nodes[i], ws.in.data(), modes);
-                gauss += q_.weights[i] * q_.nodes[i] * ws.in[0];
-                for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = ws.in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
+                const Real* in = ws.row.data() + i * kk;
+                gauss += q_.weights[i] * q_.nodes[i] * in[0];
+                for (std::size_t k = 0; k < kk; ++k) ws.c[k * m + i] = in[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
             }
             specular_share = blend(gauss, flux, ws.c);
             if (!(specular_share > 0)) return;
         }
-        const Real mu_t = top.internal_cosine(mu_i);
         if (!(mu_t > 0)) return;
-        specular_spread(top, Crossing::entering, mu_i, mu_t, spread_point(mu_t), spread_points(mu_t), ws, modes);
+        specular_spread(top, spread_point(mu_t), spread_points(mu_t), ws, modes);
         for (std::size_t i = 0; i < m; ++i) {
             const Real base = specular_share * flux * ws.in[i] / (q_.weights[i] * q_.nodes[i]);
             Real pole = 1;  // pole_factor(mu_t, mu_m)^k
@@ -1182,15 +1278,18 @@ private:
     //    escape cone, 0 elsewhere (below its critical cosine the ordinates are totally reflected and hold trapped
     //    light that must not leak into the interpolation); they sum to 1;
     //  - ws.shape[k]: the azimuthal shape, I_k / I_0 of a rough face's lobe between mu and mu_t (so that its higher
-    //    modes decay as the lobe's do), or 1 for every k through a specular face (a delta in phi).
-    void specular_spread(const Face& face, Crossing c, Real mu, Real mu_t, Real x, int p, Workspace& ws, int modes) const {
+    //    modes decay as the lobe's do: couplings() left its I_k in the last row of ws.row), or 1 for every k through
+    //    a specular face (a delta in phi).
+    void specular_spread(const Face& face, Real x, int p, Workspace& ws, int modes) const {
         const std::size_t kk = static_cast<std::size_t>(modes);
         ws.shape.assign(kk, Real(1));
         if (face.rough()) {
-            ws.in.resize(static_cast<std::size_t>(face.ops().modes()));
-            face.transmission(c, mu, mu_t, ws.in.data(), modes);
-            const Real i0 = ws.in[0];
-            for (std::size_t k = 0; k < kk; ++k) ws.shape[k] = i0 > 0 ? ws.in[k] / i0 : Real(k == 0);
+            const Real* lobe = ws.row.data() + q_.size() * kk;
+            const Real i0 = lobe[0];
+            // |I_k| <= I_0 for a non-negative lobe: a tabulated I_0 near grazing, small and relatively less exact
+            // than the I_k, must not amplify them.
+            for (std::size_t k = 0; k < kk; ++k)
+                ws.shape[k] = i0 > 0 ? std::fmin(std::fmax(lobe[k] / i0, Real(-1)), Real(1)) : Real(k == 0);
         }
         const int m = static_cast<int>(q_.size());
         // The stencil stays inside the face's escape cone and on x's side of the other face's critical cosine where
@@ -1216,6 +1315,31 @@ private:
             window = detail::lagrange_weights(q_.nodes.data(), end, x, p, w, lowest);
         ws.in.assign(q_.size(), Real(0));
         for (int a = 0; a < window.points; ++a) ws.in[static_cast<std::size_t>(window.first + a)] = w[a];
+    }
+
+    // A rough face's integrals I_k, k < modes, between |cosine| mu outside and each ordinate inside, into
+    // ws.row[m K + k] (K = modes), and between mu and mu_t, its Snell cosine inside, into ws.row[M K + k] (for the
+    // specular spread's azimuthal shape; left 0 where mu_t = 0 or K = 1, where the shape is 1), for light crossing the
+    // given way: from the face's table where it holds mu (LayerRequest::tabulate_faces), else by their integrals.
+    void couplings(const Face& face, Crossing c, Real mu, Real mu_t, int modes, Workspace& ws) const {
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes);
+        ws.row.assign((m + 1) * kk, Real(0));
+        const detail::CouplingTable<Real>* table = coupling_table(face, c);
+        if (!table || !table->holds(mu)) {
+            for (std::size_t i = 0; i < m; ++i) face.transmission(c, mu, q_.nodes[i], ws.row.data() + i * kk, modes);
+            if (mu_t > 0 && kk > 1) face.transmission(c, mu, mu_t, ws.row.data() + m * kk, modes);
+            return;
+        }
+        const std::size_t all = static_cast<std::size_t>(modes_);
+        ws.row_all.resize((m + 1) * all);
+        table->table->interpolate(mu, ws.row_all.data(), static_cast<int>((m + 1) * all));
+        for (std::size_t i = 0; i <= m; ++i)
+            for (std::size_t k = 0; k < kk; ++k) ws.row[i * kk + k] = table->scale * ws.row_all[i * all + k];
+    }
+    const detail::CouplingTable<Real>* coupling_table(const Face& face, Crossing c) const noexcept {
+        if (face.bottom && c == Crossing::entering) return nullptr;  // (light enters from above)
+        const detail::CouplingTable<Real>& t = couplings_[face.bottom ? 2 : c == Crossing::entering ? 0 : 1];
+        return t.table ? &t : nullptr;
     }
 
     // A face's critical cosine inside, where it is sharp at the ordinates' resolution (0 where it is not, or there
@@ -1670,13 +1794,13 @@ private:
             const Real n = face.eta_outside() / face.eta_inside();
             const Real expected = n * n * t_outside;
             if (!(expected > 0)) return;
-            ws.in.resize(static_cast<std::size_t>(face.ops().modes()));
+            couplings(face, Crossing::leaving, mu_o, mu_t, modes_, ws);
             Real gauss = 0;
             for (std::size_t i = 0; i < m; ++i) {
-                face.transmission(Crossing::leaving, mu_o, q_.nodes[i], ws.in.data(), modes_);
+                const Real* in = ws.row.data() + i * kk;
                 const Real wm = q_.weights[i] * q_.nodes[i];
-                gauss += wm * ws.in[0];
-                for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] = wm * ws.in[k];
+                gauss += wm * in[0];
+                for (std::size_t k = 0; k < kk; ++k) ws.out[k * m + i] = wm * in[k];
             }
             // The reciprocity behind `expected` needs a reciprocal BTDF: with masking-only shadowing the exit
             // weights are used as they are (tests/test_layer_monte_carlo.cpp measured both against a photon
@@ -1686,7 +1810,7 @@ private:
             specular = expected * blend(gauss, expected, ws.out);
         }
         if (!(specular > 0) || !(mu_t > 0)) return;
-        specular_spread(face, Crossing::leaving, mu_o, mu_t, spread_point(mu_t), spread_points(mu_t), ws, modes_);
+        specular_spread(face, spread_point(mu_t), spread_points(mu_t), ws, modes_);
         for (std::size_t i = 0; i < m; ++i) {
             Real pole = 1;
             const Real step = pole_factor(mu_t, q_.nodes[i]);
@@ -1801,6 +1925,10 @@ private:
     // The transmittance of light arriving from outside (Face::transmittance_from_outside), shared with a
     // PreparedBoundary when solved from one.
     std::shared_ptr<const detail::EntryTransmittance<Real>> top_entry_, bottom_entry_;
+    // LayerRequest::tabulate_faces: the couplings of the top for light entering and leaving, of the bottom for light
+    // leaving; empty where not tabulated.
+    detail::CouplingTable<Real> couplings_[3];
+    bool faces_tabulated_ = false;
     std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
     // Per requested depth: its optical depth (true and as solved) and the mode-0 operators from the coefficients
     // entering below the top (c) to the down- and up-going radiance there.
@@ -2079,7 +2207,75 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         s.separate_direct_beam(scaled_tau, true_tau);
     }
     s.precompute_incidences();  // 7.
+    if (request.tabulate_faces) s.tabulate_faces();  // 8.
     return s;
+}
+
+// Step 8 (LayerRequest::tabulate_faces): the entry tables, and the couplings of the faces that light enters and
+// leaves by for the outputs requested, where a face is rough and light crosses from the less dense side (the
+// integrals keep the onset at a critical cosine exactly).
+template <class Real>
+void LayeredSurface<Real>::tabulate_faces() {
+    faces_tabulated_ = true;
+    top_entry_->prepare();
+    bottom_entry_->prepare();
+    if (modes_ == 0) return;
+    const Face top = top_face(), bottom = bottom_face();
+    const auto tabulable = [](const Face& f) { return f.rough() && !(f.eta_outside() > f.eta_inside()); };
+    const bool fields = detail::needs_reflected(outputs_) || detail::needs_transmitted(outputs_);
+    const bool out_top = includes(outputs_, LayerOutput::subsurface_reflection);
+    const bool out_bottom = includes(outputs_, LayerOutput::transmission) && !bottom_.lambertian();
+    const bool turned = detail::turned_over(top_, bottom_);
+    if (tabulable(top) && fields) couplings_[0] = tabulate_couplings(top, Crossing::entering);
+    if (tabulable(top) && (out_top || (out_bottom && turned))) {
+        // Light leaving through the top: the entering light's table times (n_1 / n_2)^2 where the BTDF is reciprocal.
+        if (top_.rough_interface()->shadowing() != Shadowing::masking_only) {
+            const Real n = top.eta_outside() / top.eta_inside();
+            couplings_[1] = couplings_[0];
+            couplings_[1].scale = n * n;
+        } else {
+            couplings_[1] = tabulate_couplings(top, Crossing::leaving);
+        }
+    }
+    if (tabulable(bottom) && out_bottom) couplings_[2] = turned ? couplings_[1] : tabulate_couplings(bottom, Crossing::leaving);
+    if (!out_top) couplings_[1] = {};
+}
+
+// One face's couplings for light crossing it the given way, at the table's nodes by their integrals; the table is
+// kept where it agrees with the integrals (CouplingTable::limit) at the midpoints of every eighth interval from the
+// third on (16 points; the first two intervals, whose stencils would reach the limit mu -> 0+, keep the integrals).
+template <class Real>
+detail::CouplingTable<Real> LayeredSurface<Real>::tabulate_couplings(const Face& face, Crossing c) const {
+    using Table = detail::CouplingTable<Real>;
+    const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_), width = (m + 1) * kk;
+    Workspace ws;
+    const auto direct = [&](Real mu) {
+        couplings(face, c, mu, face.internal_cosine(mu), modes_, ws);  // (no table yet: the integrals)
+        return ws.row;
+    };
+    auto table = std::make_shared<detail::MuTable<Real>>();
+    table->arcsine = true;
+    table->build(Table::intervals, static_cast<int>(width), [&](Real mu, Real* out) {
+        const std::vector<Real> row = direct(mu);
+        std::copy(row.begin(), row.end(), out);
+    });
+    Table t;
+    t.grazing = table->cosine(Real(2) / Real(Table::intervals));
+    std::vector<Real> interpolated(width);
+    for (int j = 2; j < Table::intervals; j += 8) {
+        const Real mu = table->cosine((Real(j) + Real(0.5)) / Real(Table::intervals));
+        const std::vector<Real> exact = direct(mu);
+        table->interpolate(mu, interpolated.data(), static_cast<int>(width));
+        Real flux = 0, error = 0;
+        for (std::size_t i = 0; i < m; ++i) {
+            const Real w = q_.weights[i] * q_.nodes[i];
+            flux += w * std::fabs(exact[i * kk]);
+            for (std::size_t k = 0; k < kk; ++k) error += w * std::fabs(interpolated[i * kk + k] - exact[i * kk + k]);
+        }
+        t.error = std::fmax(t.error, flux > 0 ? error / flux : error);
+    }
+    if (t.error <= Table::limit) t.table = std::move(table);
+    return t;
 }
 
 // Step 4: modes 0, 1, ... up to `modes`: mode k of everything below the top face (detail::stack_mode), its Q_b and
