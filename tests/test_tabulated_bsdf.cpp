@@ -354,6 +354,32 @@ TEST_CASE("TabulatedBSDF<float> from a double layer: the double table rounded") 
     }
 }
 
+TEST_CASE("TabulatedBSDF from a layer whose faces were tabulated: the same table") {
+    // The grid's cosines (t = j / (n - 1), n - 1 dividing 128) are nodes of the layer's face tables
+    // (LayerRequest::tabulate_faces), where those hold the integrals' values up to rounding: the coefficients agree
+    // to ~1e-14 and, stored in float, the tables are equal (measured: every eval bit for bit). A grid between the
+    // face tables' nodes would differ by their interpolation (~1e-6 of the lobe, tests/test_layer_tabulated.cpp).
+    LayerOptions o;
+    o.ordinates = 8;
+    LayerRequest<double> faces;
+    faces.tabulate_faces = true;
+    const auto slab = Slab<double>::from_transparency(0.9, 0.8, 0.5);
+    const RoughDielectric<double> top(0.3, 1.0, 1.4), bottom(0.3, 1.4, 1.0);
+    const TabulatedBSDF<double> plain(solve_layer(slab, top, bottom, o), 1e-2);
+    const TabulatedBSDF<double> fast(solve_layer(slab, top, bottom, o, faces), 1e-2);
+    CHECK(fast.grid_size() == plain.grid_size());
+    CHECK(fast.error() == doctest::Approx(plain.error()).epsilon(1e-6));
+    std::mt19937_64 rng(21);
+    double worst = 0;
+    for (int n = 0; n < 400; ++n) {
+        const Vec3<double> wi = direction(uniform(rng), 2 * pi * uniform(rng));
+        Vec3<double> wo = direction(uniform(rng), 2 * pi * uniform(rng));
+        if (n % 2) wo.z = -wo.z;
+        worst = std::fmax(worst, std::fabs(fast.eval(wi, wo) - plain.eval(wi, wo)) / std::fmax(1.0, plain.eval(wi, wo)));
+    }
+    CHECK(worst < 1e-12);
+}
+
 TEST_CASE("TabulatedBSDF: a Lambertian floor (nothing transmitted) and outputs not requested") {
     LayerOptions o;
     o.ordinates = 8;

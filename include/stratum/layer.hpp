@@ -367,6 +367,7 @@ template <class Real>
 struct CouplingTable {
     std::shared_ptr<const MuTable<Real>> table;  // null: not tabulated
     Real scale = 1;
+    // (A multiple of TabulatedBSDF's grid intervals, 8 to 128: its cosines fall on these nodes.)
     static constexpr int intervals = 128;
     Real grazing = 1;
     // The largest difference from the integrals at the check points, every mode's summed, relative to the flux
