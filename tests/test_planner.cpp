@@ -127,6 +127,39 @@ TEST_CASE("angular outputs: the plan's solve, modes cut at the tolerance") {
     CHECK(planned.surface.transmittance(0.8) == 0);  // not asked
 }
 
+TEST_CASE("a scene that evaluates at any incidence: the final solve tabulates the faces") {
+    // The same plan as without (the levels and the estimate do not change), the final solve with
+    // LayerRequest::tabulate_faces: its outputs at incidences not listed are the untabulated solve's within the
+    // table's error (tests/test_layer_tabulated.cpp), for fluxes alone (the last level solved again) and angular ones.
+    SceneRequest<double> base;
+    base.incidence.push_back(0.8);
+    base.tolerance = 1e-2;
+    base.max_ordinates = 16;
+    for (const LayerOutput outputs : {LayerOutput::reflectance | LayerOutput::transmittance, LayerOutput::subsurface_reflection}) {
+        SceneRequest<double> scene = base;
+        scene.outputs = outputs;
+        const auto plain = solve_planned(skin(), scene);
+        scene.tabulate_faces = true;
+        const auto fast = solve_planned(skin(), scene);
+        CHECK(fast.plan.options.ordinates == plain.plan.options.ordinates);
+        CHECK(fast.plan.estimated_error == plain.plan.estimated_error);
+        CHECK(fast.plan.request.tabulate_faces);
+        CHECK(fast.surface.tabulated_couplings() >= 1);
+        CHECK(plain.surface.tabulated_couplings() == 0);
+        CHECK(fast.plan.reason.find("the faces tabulated") != std::string::npos);
+        for (const double mu : {0.93, 0.51, 0.07}) {
+            CAPTURE(mu);
+            if (outputs == LayerOutput::subsurface_reflection) {
+                const Vec3<double> wi = stratum::spherical_direction(mu, 0.0), wo{0.0, 0.6, 0.8};
+                CHECK(fast.surface.subsurface_brdf(wi, wo) == doctest::Approx(plain.surface.subsurface_brdf(wi, wo)).epsilon(1e-4));
+            } else {
+                CHECK(fast.surface.reflectance(mu).subsurface == doctest::Approx(plain.surface.reflectance(mu).subsurface).epsilon(1e-4));
+                CHECK(fast.surface.transmittance(mu) == doctest::Approx(plain.surface.transmittance(mu)).epsilon(1e-4));
+            }
+        }
+    }
+}
+
 TEST_CASE("angular outputs: the estimate of their error against a finer solve") {
     // The probes of Plan::angular_error, recomputed against the same request at 96 ordinates (relative to the largest
     // probe value of the reference).

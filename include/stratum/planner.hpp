@@ -87,6 +87,10 @@ struct SceneRequest {
     /// Material::extinction; 0: not given. With a diffusion profile, the plan says whether it is local
     /// (Plan::profile_local).
     Real length_scale = 0;
+    /// The scene evaluates at any incidence, beyond `incidence` (a renderer, or a TabulatedBSDF built from the
+    /// layer): the final solve tabulates the faces (LayerRequest::tabulate_faces), so that reflectance,
+    /// transmittance, brdf and btdf cost microseconds at any angle, within that table's error.
+    bool tabulate_faces = false;
 };
 
 /// Which model answers the request.
@@ -441,11 +445,21 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
             ? std::string()
             : "; diffusion profile: the dipole, its total reflectance " + detail::format_number(double(plan.profile_error)) +
                   " from the layer's" + (plan.profile_local ? " (local at the scene's length scale: the BRDF suffices)" : "");
+    plan.request.tabulate_faces = scene.tabulate_faces;
     if (!checked.angular) {
         plan.request = checked.request;
+        plan.request.tabulate_faces = scene.tabulate_faces;
         plan.modes = 1;
         plan.reason += "; Fourier mode 0 only (no angular output asked)" + profile;
-        out.surfaces = std::move(levels.last);
+        if (!scene.tabulate_faces) {
+            out.surfaces = std::move(levels.last);
+            return out;
+        }
+        const auto solve_start = std::chrono::steady_clock::now();  // (the last level again, with the tables)
+        for (const Material<Real>& m : wavelengths)
+            out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
+        plan.solve_seconds = detail::seconds_since(solve_start);
+        plan.reason += "; the faces tabulated";
         return out;
     }
     const auto solve_start = std::chrono::steady_clock::now();
@@ -458,6 +472,7 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
     const bool estimate = scene.estimate_angular_error || scene.angular_tolerance > 0;
     const int flux_ordinates = plan.options.ordinates;
     LayerRequest<Real> probe = plan.request;  // (the coarse solve needs the angular series, not the layer's operators)
+    probe.tabulate_faces = false;  // (nor tables: it is only compared)
     if (includes(probe.outputs, LayerOutput::operators))
         probe.outputs = static_cast<LayerOutput>(static_cast<unsigned>(probe.outputs) & ~static_cast<unsigned>(LayerOutput::operators)) |
                         LayerOutput::subsurface_reflection | LayerOutput::transmission;
@@ -494,7 +509,7 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
                    (plan.options.ordinates > flux_ordinates
                         ? "; " + std::to_string(plan.options.ordinates) + " ordinates for the angular tolerance"
                         : std::string()) +
-                   profile;
+                   (scene.tabulate_faces ? "; the faces tabulated" : "") + profile;
     return out;
 }
 
