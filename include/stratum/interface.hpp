@@ -196,8 +196,8 @@ public:
     /// type, chosen above every arithmetic limit and below anything physical:
     /// - arithmetic: D's peak 1 / (2 pi sigma^2) and the BTDF and pdf peaks, which grow like
     ///   eta_o^2 / ((eta_o - eta_i)^2 sigma^2) (eta_o, eta_i adjacent floating-point numbers at worst), are
-    ///   Real values (D and pdf are computed in Real; Lambda, the brdf/btdf products, sampling and albedo in
-    ///   detail::wide_t). They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13
+    ///   Real values (D, pdf and the visible-normal sampling are computed in Real; Lambda, the brdf/btdf products
+    ///   and albedo in detail::wide_t). They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13
     ///   in float (2.2e-20 for D alone). Meaning is lost earlier in float: a unit vector resolves
     ///   ~2^-24 = 6e-8 rad, so a lobe narrower than ~1e-7 lies within an ulp or two of its centre and its
     ///   values at representable directions are noise.

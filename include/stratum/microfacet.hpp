@@ -123,7 +123,10 @@ STRATUM_HOST_DEVICE W sample_visible_slope(W a, W u) noexcept {
     for (int it = 0; it < 100; ++it) {
         const W e = std::exp(-x * x);  // (once: g and its derivatives share it)
         const W f = A * (sqrt_pi_v<W> / 2) * std::erfc(-x) + B * e / 2 - target;
-        if (std::fabs(f) <= 4 * std::numeric_limits<W>::epsilon() * total) break;  // rounding level
+        // Rounding level relative to the target: in the lower tail u total falls below eps total (from u ~ 1e-7 in
+        // float), where a stop at eps total accepted any slope.
+        if (std::fabs(f) <= 4 * std::numeric_limits<W>::epsilon() * std::fmin(total, std::fmax(target, std::numeric_limits<W>::min())))
+            break;
         if (f < 0)
             lo = x;
         else
@@ -235,7 +238,10 @@ public:
     /// the result is a finite unit vector for every such u (u = 0 is clamped to the 1e-316 tail). For
     /// wi.z < 0 the normal is on the lower side (h.z < 0), the mirror image of the wi.z > 0 case.
     STRATUM_HOST_DEVICE Vec3<Real> sample_visible_normal(Vec3<Real> wi, Real u1, Real u2) const noexcept {
-        using W = detail::wide_t<Real>;
+        // In Real, float included: within 5.1e-6 of the double sampler's normal at the same inputs for 99.9% of
+        // uniforms (5e-8 typical), 8.1e-4 at u1 = 1 - 2^-24, where float's u resolves the CDF's last 6e-8 only
+        // (tests/test_microfacet.cpp); RoughDielectric<float>::sample 12% faster than in double (README).
+        using W = Real;
         const W al = alpha_;
         // Azimuth and a = cot(theta) / alpha from wi itself (alpha is isotropic), so that neither a tiny alpha
         // (alpha wi.x underflowing) nor a huge one ((alpha wi.x)^2 overflowing) changes them.
