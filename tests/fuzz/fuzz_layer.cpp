@@ -2,7 +2,8 @@
 // index matched) at a few ordinates; then, chosen by the input's last byte (so that the older corpus keeps its
 // meaning: an exhausted input reads 0), the same slab with a phase function given by three arbitrary moments
 // (not necessarily positive definite) or over a Lambertian floor; then, chosen by the next byte, a second slab
-// under a joint of any kind, with the fields at three depths. Promises checked: bad parameters throw
+// under a joint of any kind, with the fields at three depths; then, by the next, the faces tabulated at the solve
+// (LayerRequest::tabulate_faces). Promises checked: bad parameters throw
 // std::invalid_argument; otherwise every output is finite and non-negative. Energy conservation is NOT checked here: with light nearly trapped
 // between two faces (total internal reflection at both, a nearly transparent slab, a rough face narrower than
 // the ordinates), the discrete field can create energy (up to half the incident flux measured; README, known
@@ -62,6 +63,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
             const double total = slabs[0].optical_thickness() + slabs[1].optical_thickness();
             request.depths = {0.0, slabs[0].optical_thickness(), total};
         }
+        request.tabulate_faces = in.byte() % 2 == 1;  // (the rough faces' couplings tabulated at the solve)
         const auto layer = stratum::solve_stack<double>(top, slabs, joints, lowest, options, request);
         for (const auto& p : layer.depth_profile(mu))
             require(std::isfinite(p.fluence) && p.fluence >= 0 && std::isfinite(p.net_flux), "fields at depth finite, fluence >= 0");
