@@ -85,13 +85,14 @@ TEST_CASE("Stam's skin layer: the tabulated faces agree with their integrals at 
     MESSAGE("surface " << d.surface << ", subsurface " << d.subsurface << ", transmittance " << d.transmittance
                        << ", brdf |wo.z| " << d.brdf << " of " << d.brdf_scale << ", btdf |wo.z| " << d.btdf << " of "
                        << d.btdf_scale);
-    // Measured 5.2e-8, 9.7e-7, 3.1e-6, 7.3e-7 of 0.089 and 9.8e-6 of 0.24 (elsewhere up to 5e-5 near the normal,
-    // where the transmitted lobe is brightest). Bounds at two to three times those.
+    // Measured 5.2e-8, 9.7e-7, 3.1e-6, 7.3e-7 of 0.089 and 9.8e-6 of 0.24 (elsewhere up to 5.2e-5 near the normal,
+    // where the transmitted lobe is brightest: the bound covers that, whatever the random directions). Bounds at two
+    // to three times those.
     CHECK(d.surface < 1e-7);
     CHECK(d.subsurface < 2e-6);
     CHECK(d.transmittance < 6e-6);
     CHECK(d.brdf < 2e-6);
-    CHECK(d.btdf < 3e-5);
+    CHECK(d.btdf < 1.5e-4);
     // Below the table's first two intervals (mu < sin^2(pi / 128) = 6.0e-4) the integrals are used: equal.
     for (double mu : {1e-6, 1e-4, 5e-4}) {
         CHECK(fast.transmittance(mu) == reference.transmittance(mu));
@@ -99,26 +100,30 @@ TEST_CASE("Stam's skin layer: the tabulated faces agree with their integrals at 
     }
 }
 
-TEST_CASE("the top's reflectance from its entry table stays within 1e-5 of the integral") {
+TEST_CASE("the top's reflectance from its entry table: within 3e-6 of the integral where the table holds it") {
     // EntryTransmittance tabulates T and R of a rough face (65 points in sqrt(mu)); with tabulate_faces the layer's
-    // surface reflectance is that table. Worst measured 6.9e-6 (sigma 0.02, n 1 | 2.17, in a random sweep); here
-    // 1.0e-6 at sigma 0.05, 4.5e-8 at 0.3. A face the table does not hold (light from the denser side) is exact.
+    // surface reflectance is that table where its check holds (within 2e-6 of the 12-node integrals at 27 midpoints;
+    // those integrals are within 4.4e-7 of the 16-node ones compared here), else the integral. Small sigma puts a
+    // feature at mu ~ sigma that the nodes miss (1e-2 at sigma 5e-4, 4.2e-5 at 1e-2, measured by review): there
+    // the integral. Light from the denser side is never tabulated.
     std::mt19937_64 rng(2);
     std::uniform_real_distribution<double> u(0, 1);
-    for (double sigma : {0.001, 0.02, 0.05, 0.3, 1.0, 3.0})
+    for (double sigma : {5e-4, 0.001, 0.005, 0.01, 0.02, 0.05, 0.3, 1.0, 3.0})
         for (double n : {1.05, 1.4, 2.5, 0.7}) {
             const RoughDielectric<double> top(sigma, 1.0, n);
             const auto layer = solve_layer(Slab<double>(0.5, 0.0, 1.0), top, Boundary<double>::index_matched(n),
-                                           with_ordinates(4), tabulated(LayerOutput::surface_reflection));
+                                           with_ordinates(4), tabulated(LayerOutput::surface_reflection | LayerOutput::reflectance));
             double worst = 0;
-            for (int i = 0; i < 40; ++i) {
-                const double mu = std::exp(std::log(1e-5) * u(rng));
+            for (int i = 0; i < 60; ++i) {
+                const double mu = i < 20 ? sigma * (0.5 + 2 * u(rng)) : std::exp(std::log(1e-5) * u(rng));
+                if (!(mu <= 1)) continue;
                 worst = std::max(worst, std::fabs(layer.reflectance(mu).surface - top.hemispherical_reflectance(mu)));
             }
             CAPTURE(sigma);
             CAPTURE(n);
+            CHECK(worst < 3e-6);
             if (n < 1) CHECK(worst == 0);
-            else CHECK(worst < 1e-5);
+            if (sigma == 0.3 && n == 1.4) CHECK(worst > 0);  // (the table serves here: 4.5e-8 measured)
         }
 }
 

@@ -130,7 +130,19 @@ TEST_CASE("angular outputs: the plan's solve, modes cut at the tolerance") {
 TEST_CASE("a scene that evaluates at any incidence: the final solve tabulates the faces") {
     // The same plan as without (the levels and the estimate do not change), the final solve with
     // LayerRequest::tabulate_faces: its outputs at incidences not listed are the untabulated solve's within the
-    // table's error (tests/test_layer_tabulated.cpp), for fluxes alone (the last level solved again) and angular ones.
+    // table's error (tests/test_layer_tabulated.cpp), for fluxes alone (the last level solved again) and angular ones;
+    // the closed form's surface reflectance from the top's checked table.
+    SceneRequest<double> surface;
+    surface.outputs = LayerOutput::surface_reflection;
+    surface.tabulate_faces = true;
+    const auto closed = solve_planned(skin(), surface);
+    CHECK(closed.plan.model == Model::closed_form);
+    CHECK(closed.plan.request.tabulate_faces);
+    for (const double mu : {0.93, 0.51, 0.07}) {
+        const double exact = skin().top.hemispherical_reflectance(mu);
+        CHECK(closed.surface.reflectance(mu).surface != exact);  // (from the table)
+        CHECK(closed.surface.reflectance(mu).surface == doctest::Approx(exact).epsilon(3e-6));
+    }
     SceneRequest<double> base;
     base.incidence.push_back(0.8);
     base.tolerance = 1e-2;

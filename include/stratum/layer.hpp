@@ -139,18 +139,19 @@ struct LayerRequest {
     Real tolerance = 0;
     /// Tabulate, at the solve, the rough faces' couplings between every outside cosine and the ordinates (the
     /// azimuthal integrals of their BTDF that brdf, btdf, reflectance and transmittance compute at an incidence or exit
-    /// not listed in `incidence`), and the top face's hemispherical reflectance and the faces' transmittance (else
-    /// tabulated at the first evaluation), so that evaluation at any angle costs microseconds and no first evaluation
-    /// builds a table (README, speed table). The couplings are interpolated by cubic polynomials in
+    /// not listed in `incidence`), and the top face's hemispherical reflectance (where its table holds it:
+    /// detail::EntryTransmittance) and the faces' transmittance (else tabulated at the first evaluation), so that
+    /// evaluation at any angle costs microseconds and no first evaluation builds a table (README, speed table). The
+    /// couplings are interpolated by cubic polynomials in
     /// (2 / pi) asin(sqrt(mu)) (detail::MuTable, 128 intervals; the first two keep the integrals); each table is
     /// checked at the solve against the integrals at 16 points between its nodes, and a face whose lobe is too narrow
     /// for it (sigma 0.05 at n 1 | 1.4; a nearly index-matched face, whose BTDF nears a delta) keeps the integrals, as
     /// does light from a denser medium (an onset at the critical cosine): see detail::CouplingTable and
     /// tabulated_couplings(). What the kept tables change in the outputs is measured in tests/test_layer_tabulated.cpp.
     /// Cost at the solve: for Stam's skin layer one table (its bottom is its top turned over, and the BTDF is
-    /// reciprocal) and the entry tables, about as much as 70 reflectance(mu) evaluations on the fly (README, speed
-    /// table), at every solve (from PreparedBoundary faces too: the tables are not kept with them). A TabulatedBSDF
-    /// built from the layer then takes a seventh of the time (tabulated_bsdf.hpp).
+    /// reciprocal) and the entry tables, checked, about as much as 90 reflectance(mu) evaluations on the fly (README,
+    /// speed table), at every solve (from PreparedBoundary faces too: the tables are not kept with them). A
+    /// TabulatedBSDF built from the layer then takes a seventh of the time (tabulated_bsdf.hpp).
     bool tabulate_faces = false;
 };
 
@@ -306,18 +307,27 @@ bool turned_over(const Boundary<Real>& top, const Boundary<Real>& bottom) noexce
 /// first table interval, for a specular face, and for light from a denser medium: there T(mu) has an onset at the
 /// critical cosine, as steep as sigma is small, which no polynomial table resolves (found by fuzz_layer: n 1.88 | 0.50,
 /// sigma 7e-5, mu 0.996 gave a transmittance 12% above the entering flux). The layer uses the tabulated
-/// transmittance always (to scale the light it lets in), the reflectance only with LayerRequest::tabulate_faces
-/// (else the integral at each mu).
+/// transmittance always (to scale the light it lets in), the reflectance only with LayerRequest::tabulate_faces and
+/// where the table holds it (check_reflectance; else the integral at each mu).
 template <class Real>
 class EntryTransmittance {
 public:
     EntryTransmittance(const Boundary<Real>& boundary, Incidence side) : boundary_(boundary), side_(side) {}
 
     Real operator()(Real mu) const { return value(mu, false); }
-    Real reflectance(Real mu) const { return value(mu, true); }
-    // Builds the table now (where one serves), so that no later evaluation pays for it.
-    void prepare() const {
-        if (tabulated(Real(1))) build();
+    // From the table where it was checked to hold R (check_reflectance), else the integral.
+    Real reflectance(Real mu) const {
+        const Real signed_mu = side_ == Incidence::from_above ? mu : -mu;
+        if (!tabulated(mu)) return boundary_.hemispherical_reflectance(signed_mu);
+        check_reflectance();  // (call_once: reflectance_held_ is written before it returns)
+        return reflectance_held_ ? value(mu, true) : boundary_.hemispherical_reflectance(signed_mu);
+    }
+    // Builds the table now (where one serves), and checks its reflectance if asked, so that no later evaluation pays
+    // for them.
+    void prepare(bool reflectance) const {
+        if (!tabulated(Real(1))) return;
+        if (reflectance) check_reflectance();
+        else build();
     }
 
 private:
@@ -341,6 +351,25 @@ private:
             });
         });
     }
+    // R has a shadowing feature near mu ~ sigma that the nodes miss for small sigma (1e-2 at sigma 5e-4, 4.2e-5 at
+    // 1e-2; found by review): the table's R is used only where it is within reflectance_limit of the integrals
+    // (at 12 nodes, as the table's) at the midpoints of every interval below t = 1/4 (mu < 1/16, where mu ~ sigma
+    // for the narrow lobes) and of every fourth above (27 points).
+    static constexpr Real reflectance_limit = Real(2e-6);
+    void check_reflectance() const {
+        build();
+        std::call_once(checked_, [this] {
+            const RoughDielectric<Real>& face = *boundary_.rough_interface();
+            const bool from_above = side_ == Incidence::from_above;
+            Real worst = 0;
+            for (int j = 1; j < intervals; j += j < intervals / 4 ? 1 : 4) {
+                const Real t = (Real(j) + Real(0.5)) / Real(intervals), mu = t * t;
+                const Real exact = face.hemispherical_totals(from_above ? mu : -mu, 12).reflectance;
+                worst = std::fmax(worst, std::fabs(table_(mu, 1) - exact));
+            }
+            reflectance_held_ = worst <= reflectance_limit;
+        });
+    }
     Real value(Real mu, bool reflected) const {
         const Real signed_mu = side_ == Incidence::from_above ? mu : -mu;
         if (!tabulated(mu))
@@ -354,8 +383,9 @@ private:
     static constexpr Real grazing = Real(1) / Real(intervals * intervals);  // below the first table interval
     Boundary<Real> boundary_;
     Incidence side_;
-    mutable std::once_flag once_;
+    mutable std::once_flag once_, checked_;
     mutable MuTable<Real> table_;
+    mutable bool reflectance_held_ = false;  // (written once, under checked_)
 };
 
 /// A rough face's couplings to a layer's ordinates, tabulated over the outside cosine (LayerRequest::tabulate_faces):
@@ -369,7 +399,8 @@ template <class Real>
 struct CouplingTable {
     std::shared_ptr<const MuTable<Real>> table;  // null: not tabulated
     Real scale = 1;
-    // (A multiple of TabulatedBSDF's grid intervals, 8 to 128: its cosines fall on these nodes.)
+    // (A multiple of TabulatedBSDF's grid intervals, 8 to 128: its cosines fall on these nodes; the midpoints where
+    // its finest grid measures its error, 256 intervals, do not.)
     static constexpr int intervals = 128;
     Real grazing = 1;
     // The largest difference from the integrals at the check points, every mode's summed, relative to the flux
@@ -1322,7 +1353,7 @@ private:
 
     // A rough face's integrals I_k, k < modes, between |cosine| mu outside and each ordinate inside, into
     // ws.row[m K + k] (K = modes), and between mu and mu_t, its Snell cosine inside, into ws.row[M K + k] (for the
-    // specular spread's azimuthal shape; left 0 where mu_t = 0 or K = 1, where the shape is 1), for light crossing the
+    // specular spread's azimuthal shape; left 0 where mu_t = 0, K = 1 (the shape is 1) or no spread follows), for light crossing the
     // given way: from the face's table where it holds mu (LayerRequest::tabulate_faces), else by their integrals.
     void couplings(const Face& face, Crossing c, Real mu, Real mu_t, int modes, Workspace& ws) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes);
@@ -1330,7 +1361,9 @@ private:
         const detail::CouplingTable<Real>* table = coupling_table(face, c);
         if (!table || !table->holds(mu)) {
             for (std::size_t i = 0; i < m; ++i) face.transmission(c, mu, q_.nodes[i], ws.row.data() + i * kk, modes);
-            if (mu_t > 0 && kk > 1) face.transmission(c, mu, mu_t, ws.row.data() + m * kk, modes);
+            // (exit_weights spreads nothing with masking-only shadowing)
+            const bool spread = c == Crossing::entering || face.boundary().rough_interface()->shadowing() != Shadowing::masking_only;
+            if (mu_t > 0 && kk > 1 && spread) face.transmission(c, mu, mu_t, ws.row.data() + m * kk, modes);
             return;
         }
         const std::size_t all = static_cast<std::size_t>(modes_);
@@ -2115,7 +2148,10 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     // A slab of optical thickness 0 (or, without requested depths, below sqrt(eps) times the smallest ordinate: its
     // effect is O(tau)) whose joints in the stack are index matched is nothing: it is dropped with one of them. Kept,
     // it turned the beam's source off (a slab that thin cannot carry it, see below) and the spread beam cost 9e-5 of
-    // R and T at 16 ordinates (glass | 0.5 | 0 | 0.5 | glass against the stack without the empty slab).
+    // R and T at 16 ordinates (glass | 0.5 | 0 | 0.5 | glass against the stack without the empty slab). (With depths
+    // requested, a slab of 0 < tau < that limit is kept, so that the depths keep their meaning; and the limit is on the
+    // true thickness, the beam's test below on the delta-M scaled one, which is smaller by up to the factor
+    // 1 - f albedo: such slabs still spread the beam.)
     if (slabs.size() > 1) {
         const Real thin = std::sqrt(std::numeric_limits<Real>::epsilon()) * detail::layer_quadrature(top, interior, bottom, options).nodes.front();
         const auto matched = [&](std::size_t j) { return interior[j].eta_above() == interior[j].eta_below(); };
@@ -2149,7 +2185,10 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     if (includes(request.outputs, LayerOutput::surface_reflection))  // (an integral each for a rough face)
         for (const Real mu : s.incidence_) s.cached_surface_.push_back(top.hemispherical_reflectance(mu));
     const int modes = detail::mode_count(options, request);
-    if (modes == 0) return s;
+    if (modes == 0) {
+        if (request.tabulate_faces) s.tabulate_faces();  // (the top's reflectance alone: its entry table)
+        return s;
+    }
 
     const auto face = [&](const Boundary<Real>& b, const detail::SharedOperators<Real>& ready) {  // 2.
         return ready ? ready : std::make_shared<const InterfaceOperators<Real>>(b.operators(s.q_, modes, options));
@@ -2243,14 +2282,14 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
 template <class Real>
 void LayeredSurface<Real>::tabulate_faces() {
     faces_tabulated_ = true;
-    top_entry_->prepare();
-    bottom_entry_->prepare();
-    if (modes_ == 0) return;
-    const Face top = top_face(), bottom = bottom_face();
-    const auto tabulable = [](const Face& f) { return f.rough() && !(f.eta_outside() > f.eta_inside()); };
     const bool fields = detail::needs_reflected(outputs_) || detail::needs_transmitted(outputs_);
     const bool out_top = includes(outputs_, LayerOutput::subsurface_reflection);
     const bool out_bottom = includes(outputs_, LayerOutput::transmission) && !bottom_.lambertian();
+    top_entry_->prepare(includes(outputs_, LayerOutput::surface_reflection));  // (light in, out through the top)
+    if (out_bottom) bottom_entry_->prepare(false);                               // (out through the bottom)
+    if (modes_ == 0) return;
+    const Face top = top_face(), bottom = bottom_face();
+    const auto tabulable = [](const Face& f) { return f.rough() && !(f.eta_outside() > f.eta_inside()); };
     const bool turned = detail::turned_over(top_, bottom_);
     if (tabulable(top) && fields) couplings_[0] = tabulate_couplings(top, Crossing::entering);
     if (tabulable(top) && (out_top || (out_bottom && turned))) {

@@ -235,7 +235,7 @@ public:
     ///   D_wi(h) = G1(wi) max(0, wi.h) D(h) / |wi.z|,
     /// by stretching to alpha = 1, sampling the slope along wi's azimuth from (a - x) exp(-x^2) (exact CDF
     /// inversion) and the perpendicular slope from exp(-y^2) / sqrt(pi), then unstretching. u1, u2 in [0, 1);
-    /// the result is a finite unit vector for every such u (u = 0 is clamped to the 1e-316 tail). For
+    /// the result is a finite unit vector for every such u (u = 0 gives the bracket's end, slope -27: density 1e-316). For
     /// wi.z < 0 the normal is on the lower side (h.z < 0), the mirror image of the wi.z > 0 case.
     STRATUM_HOST_DEVICE Vec3<Real> sample_visible_normal(Vec3<Real> wi, Real u1, Real u2) const noexcept {
         // In Real, float included: within 5.1e-6 of the double sampler's normal at the same inputs for 99.9% of

@@ -424,6 +424,7 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
     plan.request.outputs = scene.outputs;
     plan.request.incidence = scene.incidence;
     plan.request.tolerance = scene.tolerance;
+    plan.request.tabulate_faces = scene.tabulate_faces;
     if (scene.outputs == LayerOutput::surface_reflection && !scene.diffusion_profile) {
         plan.options.ordinates = 1;
         plan.reason = "closed form: the top face's own reflection needs no solve";
@@ -445,7 +446,6 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
             ? std::string()
             : "; diffusion profile: the dipole, its total reflectance " + detail::format_number(double(plan.profile_error)) +
                   " from the layer's" + (plan.profile_local ? " (local at the scene's length scale: the BRDF suffices)" : "");
-    plan.request.tabulate_faces = scene.tabulate_faces;
     if (!checked.angular) {
         plan.request = checked.request;
         plan.request.tabulate_faces = scene.tabulate_faces;
@@ -463,16 +463,17 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
         return out;
     }
     const auto solve_start = std::chrono::steady_clock::now();
+    LayerRequest<Real> untabulated = plan.request;  // (the faces are tabulated once, for the solve kept)
+    untabulated.tabulate_faces = false;
     for (const Material<Real>& m : wavelengths) {
-        out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
+        out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, untabulated));
         plan.modes = std::max(plan.modes, out.surfaces.back().modes());
     }
     // The angular estimate: the same request at the previous level's ordinates (its faces are prepared), compared;
     // with an angular tolerance, the ordinates doubled (faces prepared from the last) until the estimate meets it.
     const bool estimate = scene.estimate_angular_error || scene.angular_tolerance > 0;
     const int flux_ordinates = plan.options.ordinates;
-    LayerRequest<Real> probe = plan.request;  // (the coarse solve needs the angular series, not the layer's operators)
-    probe.tabulate_faces = false;  // (nor tables: it is only compared)
+    LayerRequest<Real> probe = untabulated;  // (the coarse solve needs the angular series, not the layer's operators)
     if (includes(probe.outputs, LayerOutput::operators))
         probe.outputs = static_cast<LayerOutput>(static_cast<unsigned>(probe.outputs) & ~static_cast<unsigned>(LayerOutput::operators)) |
                         LayerOutput::subsurface_reflection | LayerOutput::transmission;
@@ -495,10 +496,13 @@ PlannedSpectrum<Real> solve_planned_spectral(const std::vector<Material<Real>>& 
         coarse = std::move(out.surfaces);
         out.surfaces.clear();
         for (const Material<Real>& m : wavelengths) {
-            out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, plan.request));
+            out.surfaces.push_back(solve_stack(levels.faces.top, m.slabs, levels.faces.interior, levels.faces.bottom, untabulated));
             plan.modes = std::max(plan.modes, out.surfaces.back().modes());
         }
     }
+    if (scene.tabulate_faces)  // the solve kept, again from its prepared faces, with the tables
+        for (std::size_t w = 0; w < wavelengths.size(); ++w)
+            out.surfaces[w] = solve_stack(levels.faces.top, wavelengths[w].slabs, levels.faces.interior, levels.faces.bottom, plan.request);
     plan.solve_seconds = detail::seconds_since(solve_start);
     plan.reason += "; " + std::to_string(plan.modes) + " of " + std::to_string(2 * plan.options.ordinates) +
                    " Fourier modes (cut at the tolerance)" +
