@@ -246,6 +246,24 @@ void BM_layer_solve_full_tabulated(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_solve_full_tabulated)->Arg(16)->Arg(24)->Unit(benchmark::kMillisecond);
 
+// The same from prepared faces, which keep their tables: a new albedo, g, thickness or wavelength pays for the slab
+// (the first solve, outside the timing, built the tables).
+void BM_layer_solve_full_tabulated_prepared(benchmark::State& state) {
+    stratum::LayerOptions options;
+    options.ordinates = static_cast<int>(state.range(0));
+    const stratum::PreparedBoundary<Real> top(stratum::RoughDielectric<Real>(0.3, 1.0, 1.4), options),
+        bottom(stratum::RoughDielectric<Real>(0.3, 1.4, 1.0), options);
+    stratum::LayerRequest<Real> r;
+    r.tabulate_faces = true;
+    benchmark::DoNotOptimize(stratum::solve_layer(stratum::Slab<Real>::from_transparency(0.9, 0.8, 0.5), top, bottom, r));
+    Real albedo = 0.9;
+    for (auto _ : state) {
+        albedo = albedo == 0.9 ? 0.91 : 0.9;
+        benchmark::DoNotOptimize(stratum::solve_layer(stratum::Slab<Real>::from_transparency(albedo, 0.8, 0.5), top, bottom, r));
+    }
+}
+BENCHMARK(BM_layer_solve_full_tabulated_prepared)->Arg(16)->Arg(24)->Unit(benchmark::kMillisecond);
+
 namespace {
 
 // A slab between smooth Fresnel faces (n 1 | 1.4 | 1, albedo 0.9, g 0.8, tau 1), reflectance and transmittance

@@ -150,8 +150,9 @@ struct LayerRequest {
     /// tabulated_couplings(). What the kept tables change in the outputs is measured in tests/test_layer_tabulated.cpp.
     /// Cost at the solve: for Stam's skin layer one table (its bottom is its top turned over, and the BTDF is
     /// reciprocal) and the entry tables, checked, about as much as 90 reflectance(mu) evaluations on the fly (README,
-    /// speed table), at every solve (from PreparedBoundary faces too: the tables are not kept with them). A
-    /// TabulatedBSDF built from the layer then takes a seventh of the time (tabulated_bsdf.hpp).
+    /// speed table). PreparedBoundary faces keep their tables (detail::CouplingCache): from them only the first
+    /// tabulated solve pays, the next cost a prepared solve. A TabulatedBSDF built from the layer then takes a
+    /// seventh of the time (tabulated_bsdf.hpp).
     bool tabulate_faces = false;
 };
 
@@ -399,6 +400,7 @@ template <class Real>
 struct CouplingTable {
     std::shared_ptr<const MuTable<Real>> table;  // null: not tabulated
     Real scale = 1;
+    int modes = 0;  // K (at least the solve's: a table kept with a prepared face holds all its operators' modes)
     // (A multiple of TabulatedBSDF's grid intervals, 8 to 128: its cosines fall on these nodes; the midpoints where
     // its finest grid measures its error, 256 intervals, do not.)
     static constexpr int intervals = 128;
@@ -412,6 +414,15 @@ struct CouplingTable {
     Real error = 0;
     static constexpr Real limit = Real(5e-3);
     bool holds(Real mu) const noexcept { return table && mu >= grazing; }
+};
+
+/// The coupling tables of a prepared face on one rule (PreparedBoundary), built by the first solve that asks for them
+/// (LayerRequest::tabulate_faces) and reused by the next (a new albedo, g, thickness or wavelength): as the top for
+/// light entering and leaving, as the bottom for light leaving. Thread-safe (std::call_once).
+template <class Real>
+struct CouplingCache {
+    std::once_flag once[3];
+    CouplingTable<Real> table[3];
 };
 
 }  // namespace detail
@@ -476,6 +487,7 @@ public:
         PreparedBoundary out(*this);
         out.boundary_ = turned;
         out.plain_.operators = std::make_shared<const InterfaceOperators<Real>>(plain_.operators->flipped());
+        out.plain_.couplings = std::make_shared<detail::CouplingCache<Real>>();  // (not this face's tables)
         std::swap(out.from_above_, out.from_below_);
         std::swap(out.plain_.above, out.plain_.below);
         out.split_ = std::make_shared<SplitRules>();  // (this face's rules are not the turned face's)
@@ -499,6 +511,7 @@ private:
         std::vector<Real> nodes;
         std::shared_ptr<const InterfaceOperators<Real>> operators;
         std::vector<Real> above, below;
+        std::shared_ptr<detail::CouplingCache<Real>> couplings = std::make_shared<detail::CouplingCache<Real>>();
         const std::vector<Real>& transmittance(Incidence side) const noexcept {
             return side == Incidence::from_above ? above : below;
         }
@@ -774,6 +787,7 @@ struct PreparedOperators {
     std::vector<SharedOperators<Real>> interior;  // empty, or one per interior face
     std::shared_ptr<const EntryTransmittance<Real>> top_entry, bottom_entry;  // light from outside the layer
     std::vector<Real> top_exit, bottom_exit;  // transmittance out of the layer at the ordinates (empty: compute)
+    std::shared_ptr<CouplingCache<Real>> top_couplings, bottom_couplings;  // (null: tables built by the solve)
 };
 
 /// Everything below the top face, ready for the per-mode adding (stack_mode).
@@ -1209,7 +1223,8 @@ private:
     };
     Face top_face() const noexcept { return Face{*this, false}; }
     Face bottom_face() const noexcept { return Face{*this, true}; }
-    detail::CouplingTable<Real> tabulate_couplings(const Face& face, Crossing c) const;
+    detail::CouplingTable<Real> tabulate_couplings(const Face& face, Crossing c, int modes) const;
+    detail::CouplingTable<Real> coupling_table_for(const Face& face, Crossing c) const;
 
     // The internal field (K blocks of M) for incidence mu_i: Q_b c_k (reflection) or Q_e c_k (transmission).
     // The first `modes` modes only (fluxes need mode 0; its azimuthal integrals then take far fewer samples, and
@@ -1366,7 +1381,7 @@ private:
             if (mu_t > 0 && kk > 1 && spread) face.transmission(c, mu, mu_t, ws.row.data() + m * kk, modes);
             return;
         }
-        const std::size_t all = static_cast<std::size_t>(modes_);
+        const std::size_t all = static_cast<std::size_t>(table->modes);
         ws.row_all.resize((m + 1) * all);
         table->table->interpolate(mu, ws.row_all.data(), static_cast<int>((m + 1) * all));
         for (std::size_t i = 0; i <= m; ++i)
@@ -1965,6 +1980,7 @@ private:
     // leaving; empty where not tabulated.
     detail::CouplingTable<Real> couplings_[3];
     bool faces_tabulated_ = false;
+    std::shared_ptr<detail::CouplingCache<Real>> top_cache_, bottom_cache_;  // a prepared face's tables (or null)
     std::vector<Real> ambient_field_;                     // mode-0 up-going field under a uniform sky
     // Per requested depth: its optical depth (true and as solved) and the mode-0 operators from the coefficients
     // entering below the top (c) to the down- and up-going radiance there.
@@ -2180,6 +2196,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                           ? s.top_entry_
                           : std::make_shared<const detail::EntryTransmittance<Real>>(bottom, Incidence::from_below);
     s.outputs_ = request.outputs;
+    s.top_cache_ = prepared.top_couplings;
+    s.bottom_cache_ = prepared.bottom_couplings;
     s.q_ = detail::layer_quadrature(top, interior, bottom, options);
     s.incidence_ = request.incidence;
     if (includes(request.outputs, LayerOutput::surface_reflection))  // (an integral each for a rough face)
@@ -2291,7 +2309,7 @@ void LayeredSurface<Real>::tabulate_faces() {
     const Face top = top_face(), bottom = bottom_face();
     const auto tabulable = [](const Face& f) { return f.rough() && !(f.eta_outside() > f.eta_inside()); };
     const bool turned = detail::turned_over(top_, bottom_);
-    if (tabulable(top) && fields) couplings_[0] = tabulate_couplings(top, Crossing::entering);
+    if (tabulable(top) && fields) couplings_[0] = coupling_table_for(top, Crossing::entering);
     if (tabulable(top) && (out_top || (out_bottom && turned))) {
         // Light leaving through the top: the entering light's table times (n_1 / n_2)^2 where the BTDF is reciprocal.
         if (top_.rough_interface()->shadowing() != Shadowing::masking_only) {
@@ -2299,23 +2317,35 @@ void LayeredSurface<Real>::tabulate_faces() {
             couplings_[1] = couplings_[0];
             couplings_[1].scale = n * n;
         } else {
-            couplings_[1] = tabulate_couplings(top, Crossing::leaving);
+            couplings_[1] = coupling_table_for(top, Crossing::leaving);
         }
     }
-    if (tabulable(bottom) && out_bottom) couplings_[2] = turned ? couplings_[1] : tabulate_couplings(bottom, Crossing::leaving);
+    if (tabulable(bottom) && out_bottom) couplings_[2] = turned ? couplings_[1] : coupling_table_for(bottom, Crossing::leaving);
     if (!out_top) couplings_[1] = {};
 }
 
-// One face's couplings for light crossing it the given way, at the table's nodes by their integrals; the table is
+// One face's table for light crossing it the given way: kept with a prepared face (built, with all its operators'
+// modes, by the first solve that asks for it, and reused by the next), or built for this solve's modes.
+template <class Real>
+detail::CouplingTable<Real> LayeredSurface<Real>::coupling_table_for(const Face& face, Crossing c) const {
+    const std::shared_ptr<detail::CouplingCache<Real>>& cache = face.bottom ? bottom_cache_ : top_cache_;
+    if (!cache) return tabulate_couplings(face, c, modes_);
+    const std::size_t i = face.bottom ? 2 : c == Crossing::entering ? 0 : 1;
+    std::call_once(cache->once[i], [&] { cache->table[i] = tabulate_couplings(face, c, face.ops().modes()); });
+    return cache->table[i];
+}
+
+// One face's couplings (`modes` of them) for light crossing it the given way, at the table's nodes by their
+// integrals; the table is
 // kept where it agrees with the integrals (CouplingTable::limit) at the midpoints of every eighth interval from the
 // third on (16 points; the first two intervals, whose stencils would reach the limit mu -> 0+, keep the integrals).
 template <class Real>
-detail::CouplingTable<Real> LayeredSurface<Real>::tabulate_couplings(const Face& face, Crossing c) const {
+detail::CouplingTable<Real> LayeredSurface<Real>::tabulate_couplings(const Face& face, Crossing c, int modes) const {
     using Table = detail::CouplingTable<Real>;
-    const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_), width = (m + 1) * kk;
+    const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes), width = (m + 1) * kk;
     Workspace ws;
     const auto direct = [&](Real mu) {
-        couplings(face, c, mu, face.internal_cosine(mu), modes_, ws);  // (no table yet: the integrals)
+        couplings(face, c, mu, face.internal_cosine(mu), modes, ws);  // (no table yet: the integrals)
         return ws.row;
     };
     auto table = std::make_shared<detail::MuTable<Real>>();
@@ -2325,6 +2355,7 @@ detail::CouplingTable<Real> LayeredSurface<Real>::tabulate_couplings(const Face&
         std::copy(row.begin(), row.end(), out);
     });
     Table t;
+    t.modes = modes;
     t.grazing = table->cosine(Real(2) / Real(Table::intervals));
     std::vector<Real> interpolated(width);
     for (int j = 2; j < Table::intervals; j += 8) {
@@ -2920,7 +2951,9 @@ LayeredSurface<Real> solve_stack(const PreparedBoundary<Real>& top, const std::v
                                              top.entry_transmittance(Incidence::from_above),
                                              bottom.entry_transmittance(Incidence::from_below),
                                              top_rule.transmittance(Incidence::from_below),
-                                             bottom_rule.transmittance(Incidence::from_above)};
+                                             bottom_rule.transmittance(Incidence::from_above),
+                                             top_rule.couplings,
+                                             bottom_rule.couplings};
     for (const PreparedBoundary<Real>& face : interior) prepared.interior.push_back(face.on_rule(q).operators);
     return LayeredSurface<Real>::solve(top.boundary(), slabs, faces, bottom.boundary(), options, request, prepared);
 }
