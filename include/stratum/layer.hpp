@@ -1144,6 +1144,8 @@ private:
     LayeredSurface(Boundary<Real> top, Boundary<Real> bottom) : top_(std::move(top)), bottom_(std::move(bottom)) {}
 
     // The steps of solve() that fill the layer (defined after it, at the end of this file).
+    void set_up_beam(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs, const std::vector<Boundary<Real>>& interior,
+                     const Boundary<Real>& bottom, const detail::PreparedStack<Real>& stack, int modes, const LayerOptions& options);
     void solve_modes(detail::PreparedStack<Real>& stack, int modes, Real tolerance);
     void add_beam_mode(int k, std::vector<detail::SlabModeSolution<Real>>&& slabs, const detail::PreparedStack<Real>& stack);
     void add_field_operators(int k, const detail::StackMode<Real>& below);
@@ -2142,6 +2144,28 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     return q;
 }
 
+/// The first slab of a stack that is nothing, or slabs.size() if none: optical thickness 0 (or, without requested
+/// depths, below sqrt(eps) times the smallest ordinate: its effect is O(tau)) and index-matched joints on both sides
+/// inside the stack. Dropped with a joint, it no longer turns the beam's source off (a slab that thin cannot carry
+/// it: LayeredSurface::solve), which spread the beam and cost 9e-5 of R and T at 16 ordinates (glass | 0.5 | 0 | 0.5
+/// | glass against the stack without the empty slab). (With depths requested, a slab of 0 < tau < that limit is
+/// kept, so that the depths keep their meaning; and the limit is on the true thickness, the beam's test on the
+/// delta-M scaled one, smaller by up to the factor 1 - f albedo: such slabs still spread the beam.)
+template <class Real>
+std::size_t empty_slab(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                       const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                       const LayerOptions& options, bool depths) {
+    if (slabs.size() < 2) return slabs.size();
+    const Real thin = std::sqrt(std::numeric_limits<Real>::epsilon()) * layer_quadrature(top, interior, bottom, options).nodes.front();
+    const auto matched = [&](std::size_t j) { return interior[j].eta_above() == interior[j].eta_below(); };
+    for (std::size_t i = 0; i < slabs.size(); ++i) {
+        const Real tau = slabs[i].optical_thickness();
+        const bool negligible = tau == 0 || (!depths && tau < thin);
+        if (negligible && (i == 0 || matched(i - 1)) && (i + 1 == slabs.size() || matched(i))) return i;
+    }
+    return slabs.size();
+}
+
 }  // namespace detail
 
 // The method (see the top of this file), in its steps:
@@ -2161,31 +2185,18 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                                                  const LayerOptions& options, const LayerRequest<Real>& request,
                                                  const detail::PreparedOperators<Real>& prepared) {
     detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
-    // A slab of optical thickness 0 (or, without requested depths, below sqrt(eps) times the smallest ordinate: its
-    // effect is O(tau)) whose joints in the stack are index matched is nothing: it is dropped with one of them. Kept,
-    // it turned the beam's source off (a slab that thin cannot carry it, see below) and the spread beam cost 9e-5 of
-    // R and T at 16 ordinates (glass | 0.5 | 0 | 0.5 | glass against the stack without the empty slab). (With depths
-    // requested, a slab of 0 < tau < that limit is kept, so that the depths keep their meaning; and the limit is on the
-    // true thickness, the beam's test below on the delta-M scaled one, which is smaller by up to the factor
-    // 1 - f albedo: such slabs still spread the beam.)
-    if (slabs.size() > 1) {
-        const Real thin = std::sqrt(std::numeric_limits<Real>::epsilon()) * detail::layer_quadrature(top, interior, bottom, options).nodes.front();
-        const auto matched = [&](std::size_t j) { return interior[j].eta_above() == interior[j].eta_below(); };
-        for (std::size_t i = 0; i < slabs.size(); ++i) {
-            const Real tau = slabs[i].optical_thickness();
-            if (!(tau == 0 || (request.depths.empty() && tau < thin))) continue;
-            const bool above = i == 0 || matched(i - 1), below = i + 1 == slabs.size() || matched(i);
-            if (!above || !below) continue;
-            const std::size_t joint = i + 1 == slabs.size() ? i - 1 : i;  // the joint dropped with the slab
-            std::vector<Slab<Real>> fewer_slabs = slabs;
-            std::vector<Boundary<Real>> fewer_joints = interior;
-            detail::PreparedOperators<Real> fewer_prepared = prepared;
-            fewer_slabs.erase(fewer_slabs.begin() + static_cast<std::ptrdiff_t>(i));
-            fewer_joints.erase(fewer_joints.begin() + static_cast<std::ptrdiff_t>(joint));
-            if (!fewer_prepared.interior.empty())
-                fewer_prepared.interior.erase(fewer_prepared.interior.begin() + static_cast<std::ptrdiff_t>(joint));
-            return solve(top, fewer_slabs, fewer_joints, bottom, options, request, fewer_prepared);
-        }
+    // An empty slab between index-matched joints is nothing: solved without it (detail::empty_slab).
+    const std::size_t empty = detail::empty_slab(top, slabs, interior, bottom, options, !request.depths.empty());
+    if (empty < slabs.size()) {
+        const std::size_t joint = empty + 1 == slabs.size() ? empty - 1 : empty;  // the joint dropped with the slab
+        std::vector<Slab<Real>> fewer_slabs = slabs;
+        std::vector<Boundary<Real>> fewer_joints = interior;
+        detail::PreparedOperators<Real> fewer_prepared = prepared;
+        fewer_slabs.erase(fewer_slabs.begin() + static_cast<std::ptrdiff_t>(empty));
+        fewer_joints.erase(fewer_joints.begin() + static_cast<std::ptrdiff_t>(joint));
+        if (!fewer_prepared.interior.empty())
+            fewer_prepared.interior.erase(fewer_prepared.interior.begin() + static_cast<std::ptrdiff_t>(joint));
+        return solve(top, fewer_slabs, fewer_joints, bottom, options, request, fewer_prepared);
     }
     LayeredSurface s(top, bottom);
     s.top_entry_ = prepared.top_entry ? prepared.top_entry
@@ -2231,39 +2242,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                 (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
     for (const detail::SlabModes<Real>& p : stack.slabs)
         beam = beam && p.slab.optical_thickness() >= std::sqrt(std::numeric_limits<Real>::epsilon()) * s.q_.nodes.front();
-    if (beam) {
-        s.beam_ = std::make_shared<detail::BeamSolution<Real>>();
-        Real scaled_tau = 0, true_tau = 0;
-        for (std::size_t i = 0; i < slabs.size(); ++i) {
-            const detail::SlabModes<Real>& p = stack.slabs[i];
-            s.beam_->slabs.emplace_back(s.q_, p.slab.optical_thickness(),
-                                        detail::PhaseAtOrdinates<Real>(p.moments, s.q_.nodes, s.q_.weights, modes));
-            s.beam_->slabs.back().set_exact_phase(p.slab.albedo(), p.truncation, slabs[i].henyey_greenstein(),
-                                                  slabs[i].g(), slabs[i].phase_moments());
-            scaled_tau += p.slab.optical_thickness();
-            true_tau += slabs[i].optical_thickness();
-        }
-        for (const Real mu : s.q_.nodes) {
-            s.beam_->r21.push_back(top.smooth_interface().reflectance(-mu));
-            s.beam_->r23.push_back(bottom.lambertian() ? Real(0) : bottom.smooth_interface().reflectance(mu));
-        }
-        if (bottom.lambertian()) s.beam_->floor = bottom.floor_albedo();
-        s.beam_->single_scattering = options.single_scattering_correction;
-        s.beam_->eta.push_back(top.eta_below());
-        for (const Boundary<Real>& b : interior) {
-            s.beam_->joints.push_back(b.smooth_interface());
-            s.beam_->eta.push_back(b.eta_below());
-            s.beam_->refracting = s.beam_->refracting || b.eta_above() != b.eta_below();
-        }
-        for (const Slab<Real>& slab : slabs) s.beam_->true_tau.push_back(slab.optical_thickness());
-        // The unscattered beam out of a refracting stack is direct_*: what its joints reflect back out through the
-        // top, and what leaves through a specular bottom (over a Lambertian floor, reflection alone: the floor makes
-        // the rest diffuse). (Over a floor it was left out, and a non-absorbing stack lost the joints' specular
-        // reflection: R = 0.99973 for 1 | 1.5 | 1.4 over a white floor, tests/test_layer_stack.cpp.)
-        if (s.beam_->refracting) s.direct_separated_ = true;
-        s.direct_tau_ = scaled_tau;
-        s.beam_tau_ = std::isinf(scaled_tau) ? scaled_tau : true_tau;
-    }
+    if (beam) s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     // A rule split at refracting joints (layer_quadrature) integrates a peaked phase function less exactly than one
     // half-range rule; where it aliases it, the beam would be spread over the ordinates and the unscattered beam
@@ -2292,6 +2271,45 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.precompute_incidences();  // 7.
     if (request.tabulate_faces) s.tabulate_faces();  // 8.
     return s;
+}
+
+// Step 2 between specular faces (the beam a source): each slab's beam solution on the ordinates with its exact phase
+// function, the faces' reflectances there, the joints, and the thicknesses the direct beam is attenuated by.
+template <class Real>
+void LayeredSurface<Real>::set_up_beam(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                       const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                                       const detail::PreparedStack<Real>& stack, int modes, const LayerOptions& options) {
+    beam_ = std::make_shared<detail::BeamSolution<Real>>();
+    Real scaled_tau = 0, true_tau = 0;
+    for (std::size_t i = 0; i < slabs.size(); ++i) {
+        const detail::SlabModes<Real>& p = stack.slabs[i];
+        beam_->slabs.emplace_back(q_, p.slab.optical_thickness(),
+                                  detail::PhaseAtOrdinates<Real>(p.moments, q_.nodes, q_.weights, modes));
+        beam_->slabs.back().set_exact_phase(p.slab.albedo(), p.truncation, slabs[i].henyey_greenstein(), slabs[i].g(),
+                                            slabs[i].phase_moments());
+        scaled_tau += p.slab.optical_thickness();
+        true_tau += slabs[i].optical_thickness();
+    }
+    for (const Real mu : q_.nodes) {
+        beam_->r21.push_back(top.smooth_interface().reflectance(-mu));
+        beam_->r23.push_back(bottom.lambertian() ? Real(0) : bottom.smooth_interface().reflectance(mu));
+    }
+    if (bottom.lambertian()) beam_->floor = bottom.floor_albedo();
+    beam_->single_scattering = options.single_scattering_correction;
+    beam_->eta.push_back(top.eta_below());
+    for (const Boundary<Real>& b : interior) {
+        beam_->joints.push_back(b.smooth_interface());
+        beam_->eta.push_back(b.eta_below());
+        beam_->refracting = beam_->refracting || b.eta_above() != b.eta_below();
+    }
+    for (const Slab<Real>& slab : slabs) beam_->true_tau.push_back(slab.optical_thickness());
+    // The unscattered beam out of a refracting stack is direct_*: what its joints reflect back out through the
+    // top, and what leaves through a specular bottom (over a Lambertian floor, reflection alone: the floor makes
+    // the rest diffuse). (Over a floor it was left out, and a non-absorbing stack lost the joints' specular
+    // reflection: R = 0.99973 for 1 | 1.5 | 1.4 over a white floor, tests/test_layer_stack.cpp.)
+    if (beam_->refracting) direct_separated_ = true;
+    direct_tau_ = scaled_tau;
+    beam_tau_ = std::isinf(scaled_tau) ? scaled_tau : true_tau;
 }
 
 // Step 8 (LayerRequest::tabulate_faces): the entry tables, and the couplings of the faces that light enters and
