@@ -70,6 +70,7 @@
 #include <cstddef>
 #include <limits>
 #include <utility>
+#include <type_traits>
 #include <vector>
 
 #include "detail/config.hpp"
@@ -196,8 +197,8 @@ public:
     /// type, chosen above every arithmetic limit and below anything physical:
     /// - arithmetic: D's peak 1 / (2 pi sigma^2) and the BTDF and pdf peaks, which grow like
     ///   eta_o^2 / ((eta_o - eta_i)^2 sigma^2) (eta_o, eta_i adjacent floating-point numbers at worst), are
-    ///   Real values (D, pdf and the visible-normal sampling are computed in Real; Lambda, the brdf/btdf products
-    ///   and albedo in detail::wide_t). They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13
+    ///   Real values (D, pdf and the visible-normal sampling are computed in Real, and Lambda and G2 too where both
+    ///   cosines are at least 1e-4; the brdf/btdf products, albedo and G2 at grazing cosines in detail::wide_t). They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13
     ///   in float (2.2e-20 for D alone). Meaning is lost earlier in float: a unit vector resolves
     ///   ~2^-24 = 6e-8 rad, so a lobe narrower than ~1e-7 lies within an ulp or two of its centre and its
     ///   values at representable directions are noise.
@@ -534,9 +535,37 @@ private:
     STRATUM_HOST_DEVICE detail::wide_t<Real> times_g2_over_cosines(detail::wide_t<Real> factor, Real mu_i, Real mu_o,
                                                                    bool transmission) const noexcept {
         using W = detail::wide_t<Real>;
-        const W li = distribution_.Lambda(mu_i), lo = distribution_.Lambda(mu_o);
+        if constexpr (!std::is_same_v<Real, W>) {
+            if (mu_i >= narrow_cosine_min && mu_o >= narrow_cosine_min) {
+                const Real g2 = detail::smith_g2<Real>(shadowing_lambda<Real>(mu_i), shadowing_lambda<Real>(mu_o),
+                                                       shadowing_, transmission);
+                return factor * static_cast<W>(g2 / mu_i) / static_cast<W>(mu_o);
+            }
+        }
+        const W li = shadowing_lambda<W>(mu_i), lo = shadowing_lambda<W>(mu_o);
         const W g2_over_mu_i = detail::smith_g2<W>(li, lo, shadowing_, transmission) / static_cast<W>(mu_i);
         return factor * g2_over_mu_i / static_cast<W>(mu_o);
+    }
+
+    // The shadowing of a type narrower than double (float) is computed in that type where both cosines are at
+    // least narrow_cosine_min: every factor then stays inside float's range (a = mu / (alpha s) >= 7e-15, Lambda
+    // <= 4e13); below, in the wide type.
+    static constexpr Real narrow_cosine_min = Real(1e-4);
+    // Where a = cot(theta) / alpha reaches this, Lambda < eps(C) / 4 (float: Lambda(4) = 5e-10; double and long double:
+    // Lambda(6.25) = 1.2e-20; wider: Lambda(9.5) = 1e-41): it enters the shadowing only as 1 + Lambda (log_beta1
+    // included), where C cannot tell it from 0, so it is returned as 0 without smith_lambda_gaussian's continued
+    // fraction (a fifth of a float brdf's time; in double the results are unchanged, bit for bit).
+    template <class C>
+    static constexpr C negligible_lambda_a() noexcept {
+        return std::numeric_limits<C>::digits <= 24 ? C(4) : std::numeric_limits<C>::digits <= 64 ? C(6.25) : C(9.5);
+    }
+    // Smith's Lambda of the cosine mu in [0, 1] for the shadowing, computed in C: a as Beckmann::Lambda forms it.
+    template <class C>
+    STRATUM_HOST_DEVICE C shadowing_lambda(Real mu) const noexcept {
+        const C m = std::fmin(static_cast<C>(mu), C(1));
+        const C alpha_s = static_cast<C>(distribution_.alpha()) * std::sqrt((1 - m) * (1 + m));
+        if (!(m < negligible_lambda_a<C>() * alpha_s)) return C(0);  // (also at m = 1, where s = 0, and for NaN)
+        return detail::smith_lambda_gaussian<C>(m / alpha_s);
     }
 
     Real sigma_;
