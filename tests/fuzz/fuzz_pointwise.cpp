@@ -50,6 +50,14 @@ void rough_dielectric(Input& in) {
             require(std::isfinite(m.pdf) && m.pdf > 0 && finite_nonnegative(m.value), "masked sample finite");
             require(stratum::allows(mask, m.reflected, m.delta), "a masked sample's lobe is allowed");
         }
+        // The float instantiation, whose shadowing is computed in float above cosines of 1e-4 (interface.hpp), at the
+        // same parameters and directions rounded to float (a parameter float cannot hold throws, as in double).
+        const stratum::RoughDielectric<float> narrow(static_cast<float>(sigma), static_cast<float>(eta_a),
+                                                     static_cast<float>(eta_b), shadowing);
+        const stratum::Vec3<float> wi_f{static_cast<float>(wi.x), static_cast<float>(wi.y), static_cast<float>(wi.z)};
+        const stratum::Vec3<float> wo_f{static_cast<float>(wo.x), static_cast<float>(wo.y), static_cast<float>(wo.z)};
+        const float f = narrow.eval(wi_f, wo_f);
+        require(std::isfinite(f) && f >= 0, "RoughDielectric<float>::eval finite and >= 0");
     } catch (const std::invalid_argument&) {
     }
 }
