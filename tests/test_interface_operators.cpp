@@ -790,6 +790,48 @@ TEST_CASE("an interface turned over has the operators of the original flipped, b
         }
 }
 
+TEST_CASE("with_modes: the operators for other modes, without the hemispherical integrals again") {
+    // From operators of 12 modes, those of 40 (the layer solver's extension, layer.hpp): equal to a fresh build of 40
+    // modes bit for bit, the totals (the same numbers, not computed again) and every entry, for faces turned over too
+    // (n < 1: built with the denser medium below and turned).
+    const Quadrature<double> q = gauss_legendre_half<double>(20);
+    double worst = 0;
+    for (const double sigma : {0.05, 0.3, 1.0, 3.0})
+        for (const double n : {1.05, 1.4, 1.0 / 1.4}) {
+            const RoughDielectric<double> face(sigma, 1.0, n);
+            const InterfaceOperators<double> few(face, q, 12, AzimuthalQuadrature<double>(),
+                                                 Renormalization::hemispherical_totals);
+            const InterfaceOperators<double> fresh(face, q, 40, AzimuthalQuadrature<double>(),
+                                                   Renormalization::hemispherical_totals);
+            const InterfaceOperators<double> more = few.with_modes(q, 40);
+            CHECK(more.modes() == 40);
+            for (const auto side : {stratum::Incidence::from_above, stratum::Incidence::from_below}) {
+                const auto& a = more.ordinate_totals(side);
+                const auto& b = fresh.ordinate_totals(side);
+                REQUIRE(a.size() == b.size());
+                for (std::size_t i = 0; i < a.size(); ++i)
+                    CHECK((a[i].reflectance == b[i].reflectance && a[i].transmittance == b[i].transmittance));
+            }
+            const FourierOperators<double>* x[4] = {&more.R12(), &more.T12(), &more.R21(), &more.T21()};
+            const FourierOperators<double>* y[4] = {&fresh.R12(), &fresh.T12(), &fresh.R21(), &fresh.T21()};
+            for (int o = 0; o < 4; ++o)
+                for (int m = 0; m < 20; ++m) {
+                    double peak = 0;
+                    for (int r = 0; r < 20; ++r) peak = std::max(peak, std::fabs((*y[o])(0, r, m)));
+                    for (int k = 0; k < 40; ++k)
+                        for (int r = 0; r < 20; ++r)
+                            worst = std::max(worst, std::fabs((*x[o])(k, r, m) - (*y[o])(k, r, m)) / std::max(peak, 1e-300));
+                }
+        }
+    CHECK(worst == 0);
+    // Refused: a specular face's operators, other ordinates, no modes.
+    const InterfaceOperators<double> smooth(SmoothDielectric<double>(1.0, 1.4), q, 4);
+    CHECK_THROWS_AS(smooth.with_modes(q, 8), std::invalid_argument);
+    const InterfaceOperators<double> rough(RoughDielectric<double>(0.3, 1.0, 1.4), q, 4);
+    CHECK_THROWS_AS(rough.with_modes(gauss_legendre_half<double>(8), 8), std::invalid_argument);
+    CHECK_THROWS_AS(rough.with_modes(q, 0), std::invalid_argument);
+}
+
 TEST_CASE("coefficient functions stay finite at extreme roughness, grazing angles and normal incidence") {
     // Hard cases of the rough interface: sigma in {1e-4, 1e-3, 2}, cosines 1e-8, 1e-4 and exactly 1, both index ratios.
     // I_0 is an integral of a non-negative BSDF, so it must be finite and >= 0; |I_k| <= I_0 for every k.

@@ -133,9 +133,10 @@ struct LayerRequest {
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
     int max_modes = 0;
     /// 0: everything exact to the discretization. > 0: (a) modes are solved in order and the loop stops
-    /// after two consecutive modes whose operators are below tolerance relative to mode 0; (b) a slab with
-    /// e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode; docs/physics.md section 6) is solved as
-    /// semi-infinite when neither transmission nor transmittance is requested.
+    /// after two consecutive modes whose operators are below tolerance relative to mode 0 (rough faces not prepared
+    /// are built for the modes it is expected to need, and for all where the loop goes on: docs/physics.md
+    /// section 6); (b) a slab with e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode) is solved
+    /// as semi-infinite when neither transmission nor transmittance is requested.
     Real tolerance = 0;
     /// Tabulate, at the solve, the rough faces' couplings between every outside cosine and the ordinates (the
     /// azimuthal integrals of their BTDF that brdf, btdf, reflectance and transmittance compute at an incidence or exit
@@ -750,6 +751,18 @@ int mode_count(const LayerOptions& options, const LayerRequest<Real>& request) n
     return modes;
 }
 
+/// The modes a rough top or bottom face's operators are first built for, from plain faces, when the request has a
+/// tolerance: solve_modes stops where the modes' coefficients fall below it (after 8 to 31 modes for Stam's layer at
+/// tolerances 1e-2 to 1e-6; reflection alone 8 to 22), so 8 + 4 per decade of the tolerance (12 at least: with fewer
+/// the azimuthal rule resolves too few panels, 2e-8 of an entry at 8 modes and sigma 1 against 2e-10 at 12 or more);
+/// more are built when the loop reaches them (LayeredSurface::extend_faces). `modes` without a tolerance.
+template <class Real>
+int first_face_modes(Real tolerance, int modes) noexcept {
+    if (!(tolerance > 0)) return modes;
+    const int decades = static_cast<int>(std::ceil(-std::log10(static_cast<double>(tolerance))));
+    return std::min(modes, std::max(12, 8 + 4 * decades));
+}
+
 /// Mode k of an operator family as a matrix.
 template <class Real>
 Matrix<Real> mode_matrix(const FourierOperators<Real>& f, int k) {
@@ -1147,6 +1160,7 @@ private:
     void set_up_beam(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs, const std::vector<Boundary<Real>>& interior,
                      const Boundary<Real>& bottom, const detail::PreparedStack<Real>& stack, int modes, const LayerOptions& options);
     void solve_modes(detail::PreparedStack<Real>& stack, int modes, Real tolerance);
+    void extend_faces(int modes);
     void add_beam_mode(int k, std::vector<detail::SlabModeSolution<Real>>&& slabs, const detail::PreparedStack<Real>& stack);
     void add_field_operators(int k, const detail::StackMode<Real>& below);
     Real coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
@@ -1962,6 +1976,7 @@ private:
 
     Boundary<Real> top_, bottom_;
     detail::SharedOperators<Real> top_ops_, bottom_ops_;  // null when nothing was solved; shared with PreparedBoundary
+    bool bottom_turned_top_ = false;                       // bottom_ops_ is top_ops_ flipped (built with it)
     Quadrature<Real> q_;
     int modes_ = 0;
     LayerOutput outputs_ = LayerOutput::all;
@@ -2219,11 +2234,16 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         return s;
     }
 
-    const auto face = [&](const Boundary<Real>& b, const detail::SharedOperators<Real>& ready) {  // 2.
-        return ready ? ready : std::make_shared<const InterfaceOperators<Real>>(b.operators(s.q_, modes, options));
+    // 2. A rough face built here for a request with a tolerance gets the modes it is expected to need, and more if
+    // the solve reaches them (extend_faces); prepared faces hold all.
+    const int face_modes = detail::first_face_modes(request.tolerance, modes);
+    const auto face = [&](const Boundary<Real>& b, const detail::SharedOperators<Real>& ready) {
+        return ready ? ready
+                     : std::make_shared<const InterfaceOperators<Real>>(b.operators(s.q_, b.rough() ? face_modes : modes, options));
     };
     s.top_ops_ = face(top, prepared.top);
-    if (!prepared.bottom && detail::turned_over(top, bottom))
+    s.bottom_turned_top_ = !prepared.bottom && detail::turned_over(top, bottom);
+    if (s.bottom_turned_top_)
         s.bottom_ops_ = std::make_shared<const InterfaceOperators<Real>>(s.top_ops_->flipped());  // (bit for bit)
     else
         s.bottom_ops_ = face(bottom, prepared.bottom);
@@ -2412,6 +2432,7 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
     Real size0 = 0;
     int negligible = 0;  // consecutive negligible modes
     for (int k = 0; k < modes; ++k) {
+        if (k >= top_ops_->modes() || k >= bottom_ops_->modes()) extend_faces(modes);
         detail::extend_phase_modes(stack, q_, k + 1);
         std::vector<detail::SlabModeSolution<Real>> solved;
         std::optional<detail::StackMode<Real>> below;
@@ -2455,6 +2476,17 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
         negligible = (k > 0 && size <= tolerance * size0) ? negligible + 1 : 0;
         if (negligible == 2) break;
     }
+}
+
+// Step 4, when the loop reaches a mode beyond those of a rough face built for a tolerance (detail::first_face_modes):
+// the face's operators for all `modes`, without its hemispherical integrals again (InterfaceOperators::with_modes).
+// The modes solved so far keep the first operators (equal within 2e-10 of an entry).
+template <class Real>
+void LayeredSurface<Real>::extend_faces(int modes) {
+    if (top_ops_->modes() < modes) top_ops_ = std::make_shared<const InterfaceOperators<Real>>(top_ops_->with_modes(q_, modes));
+    if (bottom_ops_->modes() < modes)
+        bottom_ops_ = std::make_shared<const InterfaceOperators<Real>>(
+            bottom_turned_top_ ? top_ops_->flipped() : bottom_ops_->with_modes(q_, modes));
 }
 
 // Step 4, between specular faces: mode k of each slab's beam source (its eigen-solution, R~ and T~) and the LU
