@@ -69,8 +69,8 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
-#include <utility>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "detail/config.hpp"
@@ -198,8 +198,9 @@ public:
     /// - arithmetic: D's peak 1 / (2 pi sigma^2) and the BTDF and pdf peaks, which grow like
     ///   eta_o^2 / ((eta_o - eta_i)^2 sigma^2) (eta_o, eta_i adjacent floating-point numbers at worst), are
     ///   Real values (D, pdf and the visible-normal sampling are computed in Real, and Lambda and G2 too where both
-    ///   cosines are at least 1e-4; the brdf/btdf products, albedo and G2 at grazing cosines in detail::wide_t). They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13
-    ///   in float (2.2e-20 for D alone). Meaning is lost earlier in float: a unit vector resolves
+    ///   cosines are at least 1e-4; the brdf/btdf products, albedo and G2 at grazing cosines in detail::wide_t).
+    ///   They overflow for sigma below ~8.5e-139 in double (3e-155 for D alone) and ~1.8e-13 in float (2.2e-20 for
+    ///   D alone). Meaning is lost earlier in float: a unit vector resolves
     ///   ~2^-24 = 6e-8 rad, so a lobe narrower than ~1e-7 lies within an ulp or two of its centre and its
     ///   values at representable directions are noise.
     /// - physical: a geometric-optics lobe narrower than the diffraction limit lambda / L means nothing; at
@@ -552,7 +553,7 @@ private:
     // <= 4e13); below, in the wide type.
     static constexpr Real narrow_cosine_min = Real(1e-4);
     // Where a = cot(theta) / alpha reaches this, Lambda < eps(C) / 4 (float: Lambda(4) = 5e-10; double and long double:
-    // Lambda(6.25) = 1.2e-20; wider: Lambda(9.5) = 1e-41): it enters the shadowing only as 1 + Lambda (log_beta1
+    // Lambda(6.25) = 1.2e-20; wider: Lambda(9.5) = 2e-43): it enters the shadowing only as 1 + Lambda (log_beta1
     // included), where C cannot tell it from 0, so it is returned as 0 without smith_lambda_gaussian's continued
     // fraction (a fifth of a float brdf's time; in double the results are unchanged, bit for bit).
     template <class C>
