@@ -55,45 +55,35 @@ Element add(const Element& a, const Element& b) {
             b.t_below * a.t_below / d};
 }
 
-// The unscattered beam through air | eta[0] (tau[0]) | eta[1] (tau[1]) | ... | air at incidence mu0, by add().
-Element beam_through(const std::vector<double>& eta, const std::vector<double>& tau, double mu0) {
-    const double s2 = 1 - mu0 * mu0;  // cosines in each medium by Snell from air
-    Element total{0, 0, 1, 1};
-    double n_prev = 1, c_prev = mu0;
-    for (std::size_t j = 0; j <= eta.size(); ++j) {
-        const double n = j < eta.size() ? eta[j] : 1.0, c = std::sqrt(1 - s2 / (n * n));
-        const double r = stratum::fresnel_dielectric(c_prev, n / n_prev);
-        total = add(total, {r, r, 1 - r, 1 - r});
-        if (j < eta.size()) {
-            const double e = std::exp(-tau[j] / c);
-            total = add(total, {0, 0, e, e});
-        }
-        n_prev = n;
-        c_prev = c;
-    }
-    return total;
-}
-
 }  // namespace
 
 TEST_CASE("refracting stack, no scattering: the unscattered beam is the scalar adding of its faces and slabs") {
-    // air | 1.5 (tau 0.3) | 1.4 (tau 0.8) | 1.38 (tau 0.5) | air: a glass slide on epidermis on dermis, albedo 0; and
-    // the same with the epidermis a film of tau 0 (its two faces, 1.5 | 1.4 | 1.38, bounce the beam as if it were
-    // not there but for the refraction: before such a film was solved, the beam was spread over the ordinates and
-    // direct_* were 0).
-    for (const std::vector<double>& tau : {std::vector<double>{0.3, 0.8, 0.5}, std::vector<double>{0.3, 0.0, 0.5}}) {
-        const std::vector<double> eta{1.5, 1.4, 1.38};
-        std::vector<Slab<double>> slabs;
-        for (double t : tau) slabs.emplace_back(0.0, 0.0, t);
-        const auto layer = stack(eta, slabs, 8);
-        for (double mu0 : {1.0, 0.7, 0.3, 0.05}) {
-            const Element total = beam_through(eta, tau, mu0);
-            const double specular = stratum::fresnel_dielectric(mu0, 1.5);
-            INFO("mu0 " << mu0 << ", tau[1] " << tau[1]);
-            CHECK(layer.direct_transmittance(mu0) == doctest::Approx(total.t).epsilon(1e-13));
-            CHECK(layer.direct_reflectance(mu0) == doctest::Approx(total.r - specular).epsilon(1e-12));
-            CHECK(layer.transmittance(mu0) == doctest::Approx(total.t).epsilon(1e-13));  // nothing scattered
+    // air | 1.5 (tau 0.3) | 1.4 (tau 0.8) | 1.38 (tau 0.5) | air: a glass slide on epidermis on dermis, albedo 0.
+    const std::vector<double> eta{1.5, 1.4, 1.38}, tau{0.3, 0.8, 0.5};
+    std::vector<Slab<double>> slabs;
+    for (double t : tau) slabs.emplace_back(0.0, 0.0, t);
+    const auto layer = stack(eta, slabs, 8);
+    for (double mu0 : {1.0, 0.7, 0.3, 0.05}) {
+        // cosines in each medium (Snell from air)
+        const double s2 = 1 - mu0 * mu0;
+        Element total{0, 0, 1, 1};
+        double n_prev = 1, c_prev = mu0;
+        for (std::size_t j = 0; j <= eta.size(); ++j) {
+            const double n = j < eta.size() ? eta[j] : 1.0, c = std::sqrt(1 - s2 / (n * n));
+            const double r = stratum::fresnel_dielectric(c_prev, n / n_prev);
+            total = add(total, {r, r, 1 - r, 1 - r});
+            if (j < eta.size()) {
+                const double e = std::exp(-tau[j] / c);
+                total = add(total, {0, 0, e, e});
+            }
+            n_prev = n;
+            c_prev = c;
         }
+        const double specular = stratum::fresnel_dielectric(mu0, 1.5);
+        INFO("mu0 " << mu0);
+        CHECK(layer.direct_transmittance(mu0) == doctest::Approx(total.t).epsilon(1e-13));
+        CHECK(layer.direct_reflectance(mu0) == doctest::Approx(total.r - specular).epsilon(1e-12));
+        CHECK(layer.transmittance(mu0) == doctest::Approx(total.t).epsilon(1e-13));  // nothing scattered
     }
 }
 
@@ -315,28 +305,14 @@ TEST_CASE("an empty slab between index-matched joints is nothing; beside a refra
             CHECK(with.brdf(direction(0.6, 0.0), direction(0.3, 2.0)) == without.brdf(direction(0.6, 0.0), direction(0.3, 2.0)));
         }
     // An air gap of tau 0 between two glass slabs refracts at both its faces (and reflects totally beyond the
-    // critical angle): kept, a film, whose scattering (O(tau)) is left out below sqrt(eps) times the smallest
-    // ordinate, so that the beam stays a source (LayeredSurface::solve). Without absorption its R + T is 1; the
-    // unscattered beam is the scalar adding; a film of tau 0, 1e-20 or 1e-12 (solved without scattering) and one of
-    // 1e-9 (solved as any slab) differ by O(tau) (measured: R, T 1.4e-10, direct_T 3.2e-10, the btdf 7e-11). (Before,
-    // the first three spread the beam over the ordinates: R off by 8e-4 and T by 1.4e-3 in a similar stack, direct_* 0.)
+    // critical angle): kept, a film. (There the beam is spread over the ordinates, direct_* are 0: README, known
+    // limitations.) Without absorption its R + T is 1.
     const Slab<double> white_a(1.0, 0.5, 0.5), white_b(1.0, 0.3, 0.7);
     const auto gap = stack({1.5, 1.0, 1.5}, {white_a, Slab<double>(1.0, 0.5, 0.0), white_b}, 16);
     const auto no_gap = stack({1.5, 1.5}, {white_a, white_b}, 16);
-    const auto solved_gap = stack({1.5, 1.0, 1.5}, {white_a, Slab<double>(1.0, 0.5, 1e-9), white_b}, 16);
     for (double mu : {1.0, 0.6, 0.1}) {
         CAPTURE(mu);
         CHECK(std::fabs(gap.transmittance(mu) - no_gap.transmittance(mu)) > 1e-2);
         CHECK(gap.reflectance(mu).total() + gap.transmittance(mu) == doctest::Approx(1.0).epsilon(1e-10));
-        CHECK(gap.direct_transmittance(mu) == doctest::Approx(beam_through({1.5, 1.0, 1.5}, {0.5, 0.0, 0.7}, mu).t).epsilon(1e-13));
-        for (double tau : {0.0, 1e-20, 1e-12}) {
-            CAPTURE(tau);
-            const auto film = stack({1.5, 1.0, 1.5}, {white_a, Slab<double>(1.0, 0.5, tau), white_b}, 16);
-            CHECK(std::fabs(film.transmittance(mu) - solved_gap.transmittance(mu)) < 1e-9);
-            CHECK(std::fabs(film.reflectance(mu).total() - solved_gap.reflectance(mu).total()) < 1e-9);
-            CHECK(std::fabs(film.direct_transmittance(mu) - solved_gap.direct_transmittance(mu)) < 1e-9);
-            CHECK(std::fabs(film.btdf(direction(mu, 0.0), direction(-0.5, 2.0)) -
-                            solved_gap.btdf(direction(mu, 0.0), direction(-0.5, 2.0))) < 1e-9);
-        }
     }
 }

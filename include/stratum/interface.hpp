@@ -264,7 +264,8 @@ public:
     ///   btdf(wi, wo) = facet_btdf(wi, wo) shadowing_over_cosines(|wi.z|, |wo.z|, true),
     /// equal to brdf and btdf within a few ulp (the order of the products differs), for callers that evaluate
     /// many directions sharing two cosines (the azimuthal integrals of InterfaceOperators) and compute the
-    /// shadowing, the costly part, once. In the wide type (double for float).
+    /// shadowing, the costly part, once. Returned in the wide type (double for float); for float the shadowing is
+    /// computed in float where both cosines are at least 1e-4 (see times_g2_over_cosines).
     /// facet_brdf = F(i.h) D(h) / 4, facet_btdf = |i.h| |o.h| eta_o^2 (1 - F) D(h) / (eta_i i.h + eta_o o.h)^2, and 0
     /// wherever brdf or btdf is 0 for any other reason than shadowing.
     STRATUM_HOST_DEVICE detail::wide_t<Real> facet_brdf(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
@@ -552,18 +553,19 @@ private:
     // least narrow_cosine_min: every factor then stays inside float's range (a = mu / (alpha s) >= 7e-15, Lambda
     // <= 4e13); below, in the wide type.
     static constexpr Real narrow_cosine_min = Real(1e-4);
-    // Where a = cot(theta) / alpha reaches this, Lambda < eps(C) / 4 (float: Lambda(4) = 5e-10; double and long double:
-    // Lambda(6.25) = 1.2e-20; wider: Lambda(9.5) = 2e-43): it enters the shadowing only as 1 + Lambda (log_beta1
+    // Where a = cot(theta) / alpha reaches this, Lambda < eps(C) / 4 (float: Lambda(4) = 2.3e-10; double and long
+    // double: Lambda(6.25) = 6.0e-21; wider: Lambda(9.5) = 1.0e-43): it enters the shadowing only as 1 + Lambda (log_beta1
     // included), where C cannot tell it from 0, so it is returned as 0 without smith_lambda_gaussian's continued
     // fraction (a fifth of a float brdf's time; in double the results are unchanged, bit for bit).
     template <class C>
     static constexpr C negligible_lambda_a() noexcept {
         return std::numeric_limits<C>::digits <= 24 ? C(4) : std::numeric_limits<C>::digits <= 64 ? C(6.25) : C(9.5);
     }
-    // Smith's Lambda of the cosine mu in [0, 1] for the shadowing, computed in C: a as Beckmann::Lambda forms it.
+    // Smith's Lambda of the cosine mu (only |mu| matters) for the shadowing, computed in C: a as Beckmann::Lambda
+    // forms it.
     template <class C>
     STRATUM_HOST_DEVICE C shadowing_lambda(Real mu) const noexcept {
-        const C m = std::fmin(static_cast<C>(mu), C(1));
+        const C m = std::fmin(std::fabs(static_cast<C>(mu)), C(1));
         const C alpha_s = static_cast<C>(distribution_.alpha()) * std::sqrt((1 - m) * (1 + m));
         if (!(m < negligible_lambda_a<C>() * alpha_s)) return C(0);  // (also at m = 1, where s = 0, and for NaN)
         return detail::smith_lambda_gaussian<C>(m / alpha_s);

@@ -759,8 +759,9 @@ int mode_count(const LayerOptions& options, const LayerRequest<Real>& request) n
 template <class Real>
 int first_face_modes(Real tolerance, int modes) noexcept {
     if (!(tolerance > 0)) return modes;
-    const int decades = static_cast<int>(std::ceil(-std::log10(static_cast<double>(tolerance))));
-    return std::min(modes, std::max(12, 8 + 4 * decades));
+    // (in double, clamped: a long double tolerance below double's range would make the logarithm infinite)
+    const double decades = std::ceil(-std::log10(std::fmax(static_cast<double>(tolerance), 1e-300)));
+    return std::min(modes, std::max(12, 8 + 4 * static_cast<int>(decades)));
 }
 
 /// Mode k of an operator family as a matrix.
@@ -2161,11 +2162,11 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
 
 /// The first slab of a stack that is nothing, or slabs.size() if none: optical thickness 0 (or, without requested
 /// depths, below sqrt(eps) times the smallest ordinate: its effect is O(tau)) and index-matched joints on both sides
-/// inside the stack. Dropped with a joint, the stack is solved as without it, bit for bit (kept, it would be solved
-/// as an empty film, LayeredSurface::solve, at the cost of its modes; before that, it spread the beam over the
-/// ordinates, 9e-5 of R and T at 16 ordinates for glass | 0.5 | 0 | 0.5 | glass). (With depths requested, a slab of
-/// 0 < tau < that limit is kept, so that the depths keep their meaning; the limit is on the true thickness, the
-/// film's on the delta-M scaled one, smaller by up to the factor 1 - f albedo.)
+/// inside the stack. Dropped with a joint, it no longer turns the beam's source off (a slab that thin cannot carry
+/// it: LayeredSurface::solve), which spread the beam and cost 9e-5 of R and T at 16 ordinates (glass | 0.5 | 0 | 0.5
+/// | glass against the stack without the empty slab). (With depths requested, a slab of 0 < tau < that limit is
+/// kept, so that the depths keep their meaning; and the limit is on the true thickness, the beam's test on the
+/// delta-M scaled one, smaller by up to the factor 1 - f albedo: such slabs still spread the beam.)
 template <class Real>
 std::size_t empty_slab(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                        const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
@@ -2251,24 +2252,18 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request, prepared.interior);
     s.exit_top_ = prepared.top_exit.empty() ? s.top_face().transmittance_at_ordinates() : prepared.top_exit;  // 3.
     s.exit_bottom_ = prepared.bottom_exit.empty() ? s.bottom_face().transmittance_at_ordinates() : prepared.bottom_exit;
-    // Between specular faces the beam is a source, exact at its true angle (docs/physics.md section 6). A slab
-    // thinner than sqrt(eps) mu_min is solved there as an empty film (tau 0, no scattering; the beam keeps its true
-    // thickness): its R and T would carry absolute errors ~eps (slab.hpp), and light trapped between the faces at
-    // the ordinates below a critical cosine, which enters and leaves only by scattering, divides two such O(tau)
-    // quantities (a smooth | smooth slab of tau = 1e-12 at grazing incidence created 1.2e-11 of 5.8e-9 entering,
-    // measured), while what it scatters, O(tau) < 1.5e-8, is below that noise. (Before, such a slab spread the beam
-    // over the ordinates: in a refracting stack R off by 8e-4, direct_* 0; tests/test_layer_stack.cpp.) Where the
-    // phase function is aliased on the ordinates (solve_modes) the beam is spread over the ordinates, with its
+    // Between specular faces around slabs joined by index-matched faces the beam is a source, exact at its true
+    // angle (docs/physics.md section 6), unless a slab is thinner than sqrt(eps) mu_min: a slab's R and T carry
+    // absolute errors ~eps (slab.hpp), and light trapped between the faces at the ordinates below a critical cosine,
+    // which enters and leaves only by scattering, divides two such O(tau) quantities (a smooth | smooth slab of
+    // tau = 1e-12 at grazing incidence created 1.2e-11 of 5.8e-9 entering, measured). There, and where the phase
+    // function is aliased on the ordinates (solve_modes), the beam is spread over the ordinates instead, with its
     // energy made exact (scattering_scale).
-    const bool beam = detail::beam_is_a_source(top, interior, bottom) &&
-                      (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
-    if (beam) {
-        const Real thin = std::sqrt(std::numeric_limits<Real>::epsilon()) * s.q_.nodes.front();
-        for (detail::SlabModes<Real>& p : stack.slabs)
-            if (p.slab.optical_thickness() < thin)
-                p = detail::prepare_slab(Slab<Real>(Real(0), Real(0), Real(0)), s.q_, p.phase.modes, options.delta_m, Real(0));
-        s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
-    }
+    bool beam = detail::beam_is_a_source(top, interior, bottom) &&
+                (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
+    for (const detail::SlabModes<Real>& p : stack.slabs)
+        beam = beam && p.slab.optical_thickness() >= std::sqrt(std::numeric_limits<Real>::epsilon()) * s.q_.nodes.front();
+    if (beam) s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     // A rule split at refracting joints (layer_quadrature) integrates a peaked phase function less exactly than one
     // half-range rule; where it aliases it, the beam would be spread over the ordinates and the unscattered beam
