@@ -795,7 +795,6 @@ TEST_CASE("with_modes: the operators for other modes, without the hemispherical 
     // modes bit for bit, the totals (the same numbers, not computed again) and every entry, for faces turned over too
     // (n < 1: built with the denser medium below and turned).
     const Quadrature<double> q = gauss_legendre_half<double>(20);
-    double worst = 0;
     for (const double sigma : {0.05, 0.3, 1.0, 3.0})
         for (const double n : {1.05, 1.4, 1.0 / 1.4}) {
             const RoughDielectric<double> face(sigma, 1.0, n);
@@ -812,18 +811,11 @@ TEST_CASE("with_modes: the operators for other modes, without the hemispherical 
                 for (std::size_t i = 0; i < a.size(); ++i)
                     CHECK((a[i].reflectance == b[i].reflectance && a[i].transmittance == b[i].transmittance));
             }
-            const FourierOperators<double>* x[4] = {&more.R12(), &more.T12(), &more.R21(), &more.T21()};
-            const FourierOperators<double>* y[4] = {&fresh.R12(), &fresh.T12(), &fresh.R21(), &fresh.T21()};
-            for (int o = 0; o < 4; ++o)
-                for (int m = 0; m < 20; ++m) {
-                    double peak = 0;
-                    for (int r = 0; r < 20; ++r) peak = std::max(peak, std::fabs((*y[o])(0, r, m)));
-                    for (int k = 0; k < 40; ++k)
-                        for (int r = 0; r < 20; ++r)
-                            worst = std::max(worst, std::fabs((*x[o])(k, r, m) - (*y[o])(k, r, m)) / std::max(peak, 1e-300));
-                }
+            CHECK(more.R12().data == fresh.R12().data);
+            CHECK(more.T12().data == fresh.T12().data);
+            CHECK(more.R21().data == fresh.R21().data);
+            CHECK(more.T21().data == fresh.T21().data);
         }
-    CHECK(worst == 0);
     // Refused: a specular face's operators, other ordinates, no modes.
     const InterfaceOperators<double> smooth(SmoothDielectric<double>(1.0, 1.4), q, 4);
     CHECK_THROWS_AS(smooth.with_modes(q, 8), std::invalid_argument);

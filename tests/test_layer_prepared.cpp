@@ -131,8 +131,8 @@ TEST_CASE("with a tolerance, plain rough faces are built for the modes it needs,
     // From plain faces a request with a tolerance builds a rough face's operators for 8 + 4 per decade of the
     // tolerance modes (12 at least; layer.hpp, first_face_modes) and, when the mode loop reaches that, for all of them
     // (InterfaceOperators::with_modes, the hemispherical integrals kept). Against faces prepared with all the modes:
-    // the same modes are solved and every output agrees within the azimuthal rules' difference (<= 2e-10 of an entry;
-    // measured 4.3e-18 of the largest output).
+    // the same modes are solved and every output agrees within the azimuthal rules' difference (<= 2e-10 of an entry,
+    // interface_operators.hpp, bounds it; measured 4.3e-18 of the largest output).
     LayerOptions options;
     options.ordinates = 16;  // 32 modes
     const Slab<double> slab(0.9, 0.8, 0.7);
@@ -159,7 +159,7 @@ TEST_CASE("with a tolerance, plain rough faces are built for the modes it needs,
                     (plain.modes() > first ? extended : within) += 1;
                 }
         }
-    CHECK(worst <= 1e-9);
+    CHECK(worst <= 2e-10);
     // Built for all modes, the plain faces would give the prepared ones' outputs bit for bit (the first case of this
     // file); built for fewer, 13 of the 16 solves differ in their last bits.
     CHECK(differ >= 8);
