@@ -509,22 +509,7 @@ public:
 
     /// Every channel's f(wi, wo) into values[0 .. channels()) (eval gives their luminance).
     void eval(Vec3<Real> wi, Vec3<Real> wo, Real* values, TransportMode mode = TransportMode::importance) const noexcept {
-        if (mode == TransportMode::radiance) {
-            if (one_sided_transmission(wi, wo)) {
-                eval(wi, wo, values);
-                for (int c = 0; c < channels(); ++c) values[c] *= sides_[0]->radiance_factor();
-                return;
-            }
-            std::swap(wi, wo);
-        }
-        const int nc = channels();
-        for (int c = 0; c < nc; ++c) values[c] = 0;
-        const Side* s = side(wi, wo);
-        if (!s || !(wo.z != 0)) return;
-        const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
-        s->lobe_channels(wo.z > 0 ? s->reflection : s->transmission, wi, wo, values);
-        const Real surface = (wo.z > 0 && s->surface) ? s->surface_lobe->brdf(wi, wo) : Real(0);
-        for (int c = 0; c < nc; ++c) values[c] = surface + values[c] / mu_o;
+        eval_channels(wi, wo, values, mode, nullptr);
     }
 
     /// The solid-angle density of sample(wi, ...) at wo (the deltas excluded: 0 there, as in RoughDielectric).
@@ -549,6 +534,27 @@ public:
     /// reflection, the tabulated transmission glossy transmission, the mirror and the direct beam specular.
     BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, TransportMode mode = TransportMode::importance,
                             Lobe allowed = Lobe::all) const noexcept {
+        return sample_channels<false>(wi, u_lobe, u1, u2, mode, allowed, nullptr);
+    }
+
+    /// As sample(), and every channel's value at the sample into values[0 .. channels()): f(wi, wo) as eval gives
+    /// it (to rounding: a tabulated lobe's channels come from the sampler's own interpolation, in the cosine it
+    /// drew rather than the one read back from wo), or for a delta each channel's power fraction / |wo.z|. The
+    /// weight of channel c is values[c] |wo.z| / pdf.
+    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, Real* values,
+                            TransportMode mode = TransportMode::importance, Lobe allowed = Lobe::all) const noexcept {
+        for (int c = 0; c < channels(); ++c) values[c] = 0;
+        return sample_channels<true>(wi, u_lobe, u1, u2, mode, allowed, values);
+    }
+
+private:
+    // sample(), and with `values` (with_values) every channel's value at the sample, computed with the luminance's
+    // where they can share its work: in importance transport a tabulated lobe's channels from the sampler's stencil,
+    // in radiance transport (the arguments exchanged) one evaluation of all channels that also gives the luminance.
+    // (A template so that sample() without values compiles to what it was before the values shared its work.)
+    template <bool with_values>
+    BsdfSample<Real> sample_channels(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, TransportMode mode, Lobe allowed,
+                                     Real* values) const noexcept {
         const bool below = wi.z < 0;
         const Side* s = below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0];
         if (!s || !all_finite(wi) || !(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return {};
@@ -572,64 +578,85 @@ public:
             out.pdf = p[lobe] / al.total;
             out.value = p[lobe] / std::fabs(out.wo.z);
             if (mode == TransportMode::radiance && !out.reflected) out.value *= s->radiance_factor();
+            const Real scale = (mode == TransportMode::radiance && !out.reflected ? s->radiance_factor() : Real(1)) /
+                               std::fabs(out.wo.z);
+            const Real mu_i = detail::clamp_unit(w.z);
+            const int nc = channels();
+            for (int c = 0; with_values && c < nc; ++c) {  // each channel's power fraction
+                const int row = nc > 1 ? c + 1 : 0;
+                values[c] = scale * (out.reflected ? (s->mirror ? s->mirror->reflectance(mu_i) : Real(0)) + s->beam(s->beam_reflected, si, row)
+                                                   : s->beam(s->beam_transmitted, si, row));
+            }
         } else {
             // value and pdf as eval and pdf give them, computed once (in the side's frame): a tabulated lobe's
             // from the series its sampler interpolated, the surface lobe's with the tabulated reflection there
             LobeValue v;
+            const int nc = channels();
+            // the tabulated lobe's channels in importance transport (several channels), from the sampler's stencil
+            const bool shared = with_values && nc > 1 && lobe != 0 && mode == TransportMode::importance;
             if (lobe == 0) {
                 out.wo = s->sample_surface(w, u1, u2);
                 // (a non-unit wi near the largest double reflects to inf - inf: found by fuzz_renderer)
                 if (!all_finite(out.wo) || !(out.wo.z != 0)) return {};
                 v = s->lobe(s->reflection, si, w, out.wo, true);
             } else {
-                const typename Side::LobeSample ls = s->sample_lobe(lobe == 1, si, w, u, u1, u2);
+                const typename Side::LobeSample ls = s->sample_lobe(lobe == 1, si, w, u, u1, u2, shared ? values : nullptr);
                 out.wo = ls.wo;
                 v = ls.at;
-                if (!all_finite(out.wo) || !(out.wo.z != 0)) return {};
+                if (!all_finite(out.wo) || !(out.wo.z != 0)) {
+                    for (int c = 0; with_values && c < nc; ++c) values[c] = 0;
+                    return {};
+                }
             }
             out.reflected = out.wo.z > 0;
             out.pdf = v.density / al.total;
-            out.value = v.value / detail::clamp_unit(std::fabs(out.wo.z));
-            if (out.reflected && s->surface) {
-                out.value += s->surface_lobe->brdf(w, out.wo);
-                if (al.surface > 0) out.pdf += al.surface / al.total * s->surface_pdf(w, out.wo);
+            const Real mu_o = detail::clamp_unit(std::fabs(out.wo.z));
+            const Real surface = out.reflected && s->surface ? s->surface_lobe->brdf(w, out.wo) : Real(0);
+            out.value = v.value / mu_o + surface;
+            if (out.reflected && s->surface && al.surface > 0) out.pdf += al.surface / al.total * s->surface_pdf(w, out.wo);
+            if (!(out.pdf > 0)) {
+                for (int c = 0; with_values && c < nc; ++c) values[c] = 0;
+                return {};
             }
-            if (!(out.pdf > 0)) return {};
-            if (mode == TransportMode::radiance) {
-                Vec3<Real> wo = out.wo;
-                if (below) wo.z = -wo.z;
-                out.value = eval(wi, wo, mode);
+            Vec3<Real> wo = out.wo;  // in the caller's frame
+            if (below) wo.z = -wo.z;
+            if (mode == TransportMode::radiance) {  // the arguments exchanged: the value (and the channels) anew
+                if (with_values) eval_channels(wi, wo, values, mode, &out.value); else out.value = eval(wi, wo, mode);
+            } else if (shared) {
+                for (int c = 0; c < nc; ++c) values[c] = surface + values[c] / mu_o;
+            } else if (with_values) {
+                if (nc == 1) values[0] = out.value; else eval_channels(wi, wo, values, mode, nullptr);
             }
         }
         if (below) out.wo.z = -out.wo.z;
         return out;
     }
 
-    /// As sample(), and every channel's value at the sample into values[0 .. channels()): f(wi, wo) as eval gives
-    /// it, or for a delta each channel's power fraction / |wo.z|. The weight of channel c is
-    /// values[c] |wo.z| / pdf.
-    BsdfSample<Real> sample(Vec3<Real> wi, Real u_lobe, Real u1, Real u2, Real* values,
-                            TransportMode mode = TransportMode::importance, Lobe allowed = Lobe::all) const noexcept {
-        const BsdfSample<Real> out = sample(wi, u_lobe, u1, u2, mode, allowed);
+    // eval(wi, wo, values, mode) and, with `luminance`, eval(wi, wo, mode) from the same interpolation.
+    void eval_channels(Vec3<Real> wi, Vec3<Real> wo, Real* values, TransportMode mode, Real* luminance) const noexcept {
+        if (mode == TransportMode::radiance) {
+            if (one_sided_transmission(wi, wo)) {
+                eval_channels(wi, wo, values, TransportMode::importance, luminance);
+                for (int c = 0; c < channels(); ++c) values[c] *= sides_[0]->radiance_factor();
+                if (luminance) *luminance *= sides_[0]->radiance_factor();
+                return;
+            }
+            std::swap(wi, wo);
+        }
         const int nc = channels();
         for (int c = 0; c < nc; ++c) values[c] = 0;
-        if (!out.valid()) return out;
-        if (!out.delta) {
-            eval(wi, out.wo, values, mode);
-            return out;
-        }
-        const Side* s = wi.z < 0 ? &*sides_[1] : &*sides_[0];
-        const Real mu_i = detail::clamp_unit(std::fabs(wi.z));
-        const detail::SplineWeights<Real> si = s->weights(mu_i);
-        const Real scale = (mode == TransportMode::radiance && !out.reflected ? s->radiance_factor() : Real(1)) /
-                           std::fabs(out.wo.z);
-        for (int c = 0; c < nc; ++c) {
-            const int row = nc > 1 ? c + 1 : 0;
-            values[c] = scale * (out.reflected ? (s->mirror ? s->mirror->reflectance(mu_i) : Real(0)) + s->beam(s->beam_reflected, si, row)
-                                               : s->beam(s->beam_transmitted, si, row));
-        }
-        return out;
+        if (luminance) *luminance = 0;
+        const Side* s = side(wi, wo);
+        if (!s || !(wo.z != 0)) return;
+        const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
+        Real a = 0;
+        s->lobe_channels(wo.z > 0 ? s->reflection : s->transmission, wi, wo, values, luminance ? &a : nullptr);
+        const Real surface = (wo.z > 0 && s->surface) ? s->surface_lobe->brdf(wi, wo) : Real(0);
+        for (int c = 0; c < nc; ++c) values[c] = surface + values[c] / mu_o;
+        if (luminance) *luminance = surface + a / mu_o;
     }
+
+public:
 
     /// The albedo of the whole BSDF for light arriving at cosine mu (> 0: from above, < 0: from below), deltas
     /// included (what a white furnace measures of sample()): {reflectance, transmittance}; {0, 0} where the side is
@@ -810,9 +837,12 @@ private:
         int stored_series(int channel) const noexcept { return 1 + (channel < derived ? channel : channel - 1); }
 
         // f |wo.z| of every channel (clamped to >= 0) into out: each stored series summed, the derived channel from
-        // their values (the relation is linear).
-        void lobe_channels(const detail::FourierTable<Real>& tab, Vec3<Real> wi, Vec3<Real> wo, Real* out) const noexcept {
+        // their values (the relation is linear). With `luminance_value`, also the luminance's (clamped), the same sums as
+        // lobe()'s value (interpolate_series's first series is interpolate's, term for term).
+        void lobe_channels(const detail::FourierTable<Real>& tab, Vec3<Real> wi, Vec3<Real> wo, Real* out,
+                           Real* luminance_value = nullptr) const noexcept {
             for (int ch = 0; ch < channels; ++ch) out[ch] = 0;
+            if (luminance_value) *luminance_value = 0;
             if (tab.empty()) return;
             const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
             const detail::SplineWeights<Real> so = weights(detail::clamp_unit(std::fabs(wo.z)));
@@ -820,6 +850,7 @@ private:
             if (channels == 1) {
                 Real c[kMaxOrder];
                 out[0] = detail::cosine_series(c, interpolate(tab, si, so, c), x);
+                if (luminance_value) *luminance_value = out[0] > 0 ? out[0] : Real(0);
             } else {
                 // The luminance (series 0) and the stored channels (series 1 .. channels - 1), four series a pass.
                 Real c[4 * kMaxOrder];
@@ -835,6 +866,7 @@ private:
                         const int series = first + s;
                         if (series == 0) {
                             rest += value;
+                            if (luminance_value) *luminance_value = value > 0 ? value : Real(0);
                         } else {
                             const int ch = series - 1 < derived ? series - 1 : series;
                             out[ch] = value;
@@ -900,8 +932,11 @@ private:
             Vec3<Real> wo{};
             LobeValue at;
         };
+        // With `channel_values` (a table of several channels), also every channel's value at wo (as lobe_channels
+        // gives them, clamped to >= 0) from the same stencil: the stored channels' series interpolated beside the
+        // luminance's, the derived one from them.
         LobeSample sample_lobe(bool reflected, const detail::SplineWeights<Real>& si, Vec3<Real> wi, Real u_sign, Real u1,
-                               Real u2) const noexcept {
+                               Real u2, Real* channel_values = nullptr) const noexcept {
             const detail::FourierTable<Real>& tab = reflected ? reflection : transmission;
             const int nn = n();
             const Real total = cdf(tab, si, nn - 1);
@@ -936,10 +971,33 @@ private:
             // The value as lobe() (eval, pdf) computes it at wo: the same summation at cos_dphi(wi, wo), which is
             // 1 at the pole (wi or wo along the normal, only mode 0 seen). (The sampler's own g at phi, from another
             // recurrence, differs by ~1e-15 of sum |c_k|: too much, relative to g, in a lobe's tails at 100 modes.)
-            const Real g = detail::cosine_series(c, order, cos_dphi(wi, out.wo));
+            const Real cos_dphi_o = cos_dphi(wi, out.wo);
+            const Real g = detail::cosine_series(c, order, cos_dphi_o);
             out.at.value = g > 0 ? g : Real(0);
             out.at.density = sampled_density(tab, si, so, t_o, c[0], out.at.value);
+            if (channel_values && channels > 1) stored_channel_values(tab, si, so, cos_dphi_o, g, channel_values);
             return out;
+        }
+
+        // Every channel's f |wo.z| (clamped to >= 0) at the stencil (si, so) and cos(dphi) = x, given the luminance's
+        // (unclamped) value y there: the stored series interpolated three at a time, the derived channel from them.
+        void stored_channel_values(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
+                                   const detail::SplineWeights<Real>& so, Real x, Real y, Real* out) const noexcept {
+            Real c[3 * kMaxOrder];
+            Real rest = y;
+            for (int first = 1; first < channels; first += 3) {
+                const int count = std::min(3, channels - first);
+                const int order = count == 3   ? interpolate_series<3>(tab, si, so, first, c)
+                                  : count == 2 ? interpolate_series<2>(tab, si, so, first, c)
+                                               : interpolate_series<1>(tab, si, so, first, c);
+                for (int k = 0; k < count; ++k) {
+                    const int ch = first + k - 1 < derived ? first + k - 1 : first + k;
+                    out[ch] = detail::cosine_series(c + k * kMaxOrder, order, x);
+                    rest -= luminance[static_cast<std::size_t>(ch)] * out[ch];
+                }
+            }
+            out[derived] = rest / luminance[static_cast<std::size_t>(derived)];
+            for (int ch = 0; ch < channels; ++ch) out[ch] = out[ch] > 0 ? out[ch] : Real(0);
         }
 
         // The Snell direction of the beam leaving below (indices eta_above -> eta_below: the tangential part scales).
