@@ -310,8 +310,8 @@ TEST_CASE("optical thickness 0, 1e-300, 1e-12, huge and +infinity are accepted; 
 // errors ~eps, so below some thickness rounding decides their sign. Found by review: R + T = 3.8e17 at tau = 1e-14,
 // g = 0.999999 (delta-M scales tau to 3e-19; 16 ordinates), NaN on one half-range rule, 1.42 at tau = 5.6e-18, g = 0,
 // 207 at tau = 3.2e-11, g = 0.999999, 3 ordinates, where slabs were solved as films only below eps mu_min on the
-// unscaled thickness (1711 of 118800 such solves above 1 + 1e-9, against none now). Films below sqrt(eps) mu_min
-// of the scaled thickness (detail::thin_slab_limit): R + T = 1 to rounding, and a thinner slab is the film to O(tau).
+// unscaled thickness (1711 of 118800 such solves above 1 + 1e-9, against none now). Films below 1e5 eps mu_min
+// of the scaled thickness (detail::film_limit): R + T = 1 to rounding, and a thinner slab is the film to O(tau).
 TEST_CASE("nearly empty lossless slabs between faces that trap light conserve energy (found by review)") {
     const auto fluxes = [](int m, double g, double tau, bool split) {
         LayerOptions o = with_ordinates(m);

@@ -818,12 +818,14 @@ struct PreparedStack {
 /// energy per ordinate). Pointwise out of the denser medium created up to 26% of the incident energy at M = 4 and
 /// 2% at M = 16 (thin slabs between smooth faces; tests/test_layer_inputs.cpp). An explicit choice is kept
 /// (README, known limitations).
-/// The optical thickness (delta-M scaled) below which a slab's diffuse scattering is not resolved on the ordinates:
-/// sqrt(eps) times the smallest ordinate. Below it the slab is solved as a film (prepare_stack) and the beam is not a
-/// source in it (LayeredSurface::solve).
+/// The optical thickness (delta-M scaled) below which a slab scatters as a film (tau = 0; prepare_stack): 1e5 eps
+/// times the smallest ordinate, where the losses of light trapped by total internal reflection, O(tau / mu), are
+/// 1e3 times the rounding of the slab's eigen-solution (~100 eps, measured: the trapped fluence 1.4% off at
+/// 8.5e3 eps), at most sqrt(eps) times it (float), the most that a film drops of R and T.
 template <class Real>
-Real thin_slab_limit(const Quadrature<Real>& q) noexcept {
-    return std::sqrt(std::numeric_limits<Real>::epsilon()) * q.nodes.front();
+Real film_limit(const Quadrature<Real>& q) noexcept {
+    const Real eps = std::numeric_limits<Real>::epsilon();
+    return std::fmin(Real(1e5) * eps, std::sqrt(eps)) * q.nodes.front();
 }
 
 template <class Real>
@@ -849,17 +851,17 @@ PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<S
         // With a tolerance the solve may stop after a few modes: the phase matrices of mode 0 now, the others as the
         // solve reaches them (extend_phase_modes; for Stam's layer at M = 24 they were 17% of a prepared solve).
         stack.slabs.push_back(prepare_slab(slab, q, request.tolerance > 0 ? 1 : modes, options.delta_m, slab.optical_thickness()));
-        // A slab whose (delta-M scaled) thickness is below thin_slab_limit scatters for the ordinates as a film
-        // (tau = 0): its eigen-solution carries absolute errors ~eps against O(tau / mu) losses, and between two faces
-        // that trap light at some ordinates (total internal reflection at both) the adding divides by those losses,
-        // which rounding can make 0 or negative: R + T = 5.4 at tau = 1e-20 (4 ordinates, split), and up to 4e17
-        // at tau = 1e-14, g = 0.999999 (delta-M scales it to 3e-19; 16 ordinates; NaN on one rule) or 1.42 at
-        // 5.6e-18, g = 0, where the limit was eps mu_min on the unscaled thickness (found by review,
-        // tests/test_layer_inputs.cpp). What the film drops is O(tau / mu_min) <= sqrt(eps) of R and T, and at
-        // incidences within tau of grazing the light the beam loses there; the unscattered beam keeps the true
-        // thickness.
+        // A slab whose (delta-M scaled) thickness is below film_limit scatters for the ordinates as a film (tau = 0):
+        // its eigen-solution carries absolute errors ~eps against O(tau / mu) losses, and between two faces that trap
+        // light at some ordinates (total internal reflection at both) the adding divides by those losses, which
+        // rounding can make 0 or negative: R + T = 5.4 at tau = 1e-20 (4 ordinates, split), and up to 4e17 at
+        // tau = 1e-14, g = 0.999999 (delta-M scales it to 3e-19; 16 ordinates; NaN on one rule) or 1.42 at 5.6e-18,
+        // g = 0, where the limit was eps mu_min on the unscaled thickness (found by review,
+        // tests/test_layer_inputs.cpp). What the film drops is O(tau / mu_min) of R and T, the light a beam within
+        // tau of grazing loses, and the fluence of the light such a slab traps (O(1) as tau -> 0); the unscattered
+        // beam keeps the true thickness.
         SlabModes<Real>& p = stack.slabs.back();
-        if (p.slab.optical_thickness() < thin_slab_limit(q))
+        if (p.slab.optical_thickness() < film_limit(q))
             p.slab = Slab<Real>::from_one_minus_albedo(p.slab.one_minus_albedo(), p.slab.g(), Real(0));
         if (shortcut) make_semi_infinite_if_opaque(p, q, request.tolerance);
     }
@@ -2266,17 +2268,17 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     s.exit_top_ = prepared.top_exit.empty() ? s.top_face().transmittance_at_ordinates() : prepared.top_exit;  // 3.
     s.exit_bottom_ = prepared.bottom_exit.empty() ? s.bottom_face().transmittance_at_ordinates() : prepared.bottom_exit;
     // Between specular faces around slabs joined by index-matched faces the beam is a source, exact at its true
-    // angle (docs/physics.md section 6), unless a slab is thinner than sqrt(eps) mu_min (thin_slab_limit; it is then
-    // a film, prepare_stack): a slab's R and T carry absolute errors ~eps (slab.hpp), and light trapped between the
-    // faces at the ordinates below a critical cosine, which enters and leaves only by scattering, divides two such
-    // O(tau) quantities (a smooth | smooth slab of tau = 1e-12 at grazing incidence created 1.2e-11 of 5.8e-9
-    // entering, measured). There, and where the phase
+    // angle (docs/physics.md section 6), unless a slab is thinner than sqrt(eps) mu_min (below film_limit a film,
+    // prepare_stack): a slab's R and T carry absolute errors ~eps (slab.hpp), and light trapped between the faces at
+    // the ordinates below a critical cosine, which enters and leaves only by scattering, divides two such O(tau)
+    // quantities (a smooth | smooth slab of tau = 1e-12 at grazing incidence created 1.2e-11 of 5.8e-9 entering,
+    // measured). There, and where the phase
     // function is aliased on the ordinates (solve_modes), the beam is spread over the ordinates instead, with its
     // energy made exact (scattering_scale).
     bool beam = detail::beam_is_a_source(top, interior, bottom) &&
                 (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
     for (const detail::SlabModes<Real>& p : stack.slabs)
-        beam = beam && p.slab.optical_thickness() >= detail::thin_slab_limit(s.q_);
+        beam = beam && p.slab.optical_thickness() >= std::sqrt(std::numeric_limits<Real>::epsilon()) * s.q_.nodes.front();
     if (beam) s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     // A rule split at refracting joints (layer_quadrature) integrates a peaked phase function less exactly than one
