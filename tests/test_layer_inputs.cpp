@@ -333,6 +333,19 @@ TEST_CASE("nearly empty lossless slabs between faces that trap light conserve en
                         CHECK(std::fabs(r - film.reflectance(mu).total()) <= 2 * tau / 0.1 + 1e-14);  // (O(tau / mu))
                     }
                 }
+    // Above the film limit a thin slab keeps the light it traps: its fluence is O(1) as tau -> 0 (4.8096 at
+    // tau = 1e-9, 16 ordinates; a film has 1.2247). At tau = 1e-11 (4e4 times the rounding it must beat) within 1e-4.
+    const auto fluence = [](double tau) {
+        LayerRequest<double> r;
+        r.depths = {tau / 2};
+        return solve_layer(Slab<double>(1.0, 0.0, tau), SmoothDielectric<double>(1.0, 1.5), SmoothDielectric<double>(1.5, 1.0),
+                           with_ordinates(16), r)
+            .depth_profile(0.5)[0]
+            .fluence;
+    };
+    const double converged = fluence(1e-9);
+    CHECK(converged > 4);
+    CHECK(fluence(1e-11) == doctest::Approx(converged).epsilon(1e-4));
 }
 
 TEST_CASE("single-scattering albedo 0 and 1 and asymmetry 0, +-(1 - 1e-12) are accepted; g = +-1 rejected") {
