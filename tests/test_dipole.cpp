@@ -451,6 +451,16 @@ TEST_CASE("pdf_radius stays finite for extreme coefficients (found by fuzz_point
     CHECK(skin.pdf_radius(r) == doctest::Approx(st * st * r * std::exp(-st * r)).epsilon(1e-15));
 }
 
+TEST_CASE("R_d is 0 without scattering even where a pole overflows (found by review)") {
+    // alpha' = 0 makes the prefactor 0; at r = 0 the poles' 1 / z^2 overflow (z_r = 1e-20 in float), and 0 x inf
+    // was NaN.
+    CHECK(stratum::Dipole<float>(1e20f, 0.0f, 1.3f).Rd(0.0f) == 0.0f);
+    CHECK(stratum::Dipole<float>(1e20f, 0.0f, 1.3f).Rd(1e-30f) == 0.0f);
+    CHECK(stratum::Dipole<double>::from_albedo(0.0, 1e-300, 1.3).Rd(0.0) == 0.0);
+    CHECK(stratum::Dipole<double>(1.0, 0.0, 1.3).Rd(0.5) == 0.0);
+    CHECK(stratum::Dipole<double>(1.0, 1e-300, 1.3).Rd(0.5) >= 0.0);
+}
+
 TEST_CASE("sample_radius follows pdf_radius (chi-square, 60 bins)") {
     // 300000 radii from a fixed-seed mt19937_64 (own [0,1) mapping); 59 equal-width bins on [0, 12/sigma_tr) plus
     // a tail bin. Expected counts from integrating pdf_radius over each bin with 16-point Gauss-Legendre (the

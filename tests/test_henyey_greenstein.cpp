@@ -580,6 +580,28 @@ TEST_CASE("Fourier coefficients at k = 200 and 1000 near the pole: representable
     CHECK(std::fabs(m.opposite_k(200)[0 * 2 + 1] + 2.570293044375455477594e-191) <= 2e-13 * 2.6e-191);
 }
 
+TEST_CASE("closed-form Fourier coefficients for a tiny g near the pole: no NaN (found by review)") {
+    // E = 2 g sin sin so small that z - 1 = (D - E) / E overflows: Miller's ratio t / (1 + t) was inf / inf. The
+    // coefficients are then p_0 = p(cos 0) = 1 - g^2 ... ~ 1 (isotropic to rounding) and p_k ~ (g sin sin)^k ~ 0.
+    auto check = [](auto g, auto mu, int modes) {
+        using R = decltype(g);
+        std::vector<R> p(static_cast<std::size_t>(modes));
+        HenyeyGreenstein<R>(g).fourier_coefficients(mu, mu, modes, p.data());
+        CAPTURE(static_cast<double>(g));
+        CAPTURE(static_cast<double>(mu));
+        CHECK(p[0] == doctest::Approx(1.0).epsilon(1e-6));
+        for (int k = 1; k < modes; ++k) {
+            CHECK(std::isfinite(p[static_cast<std::size_t>(k)]));
+            CHECK(std::fabs(p[static_cast<std::size_t>(k)]) <= 1e-30);
+        }
+    };
+    check(1e-300, std::nextafter(1.0, 0.0), 4);
+    check(1e-300, 0.5, 64);
+    check(1e-30f, std::nextafter(1.0f, 0.0f), 512);
+    check(1e-35f, 0.99999f, 4);
+    check(-1e-35f, 0.99999f, 4);
+}
+
 TEST_CASE("Fourier symmetries: p_k(mu', mu) = p_k(mu, mu') = p_k(-mu', -mu)") {
     const auto chi = HenyeyGreenstein<double>(0.8).legendre_moments(120);
     for (double a : {-0.9, -0.2, 0.35, 0.99})

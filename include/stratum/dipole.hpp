@@ -357,7 +357,9 @@ public:
     /// of entry. Finite at r = 0, -> 0 as r -> inf (0 for r = inf); even in r.
     STRATUM_HOST_DEVICE Real Rd(Real r) const noexcept {
         const Real r2 = r * r;
-        if (!(r2 < std::numeric_limits<Real>::infinity())) return Real(0);
+        // (alpha' = 0: 0, where a pole 1 / d^2 can overflow and 0 * inf is NaN: sigma_t' 1e20 in float, 1e-300 x
+        // 1e300 in double; found by review)
+        if (!(r2 < std::numeric_limits<Real>::infinity()) || !(prefactor_ > 0)) return Real(0);
         return prefactor_ * (pole(r2, z_r_) + pole(r2, z_v_));
     }
 

@@ -217,7 +217,9 @@ public:
             for (int k = k_start; k >= 1; --k) {
                 const Real kr = static_cast<Real>(k);
                 const Real t = (Real(2) * kr * zm1 + (kr - Real(0.5)) * ratio) / (kr + Real(0.5));
-                ratio = t / (Real(1) + t);
+                // (t = inf where z - 1 = (D - E) / E overflows, tiny g E: then s_k / s_{k-1} = 0, and t / (1 + t)
+                // would be NaN; found by review, g = 1e-300 at mu' = mu = 1 - ulp)
+                ratio = std::isinf(t) ? Real(1) : t / (Real(1) + t);
                 if (k < modes) out[k] = t;
             }
             Real r = 1;
