@@ -57,6 +57,21 @@ double lobe_scale(const LayeredSurface<double>& layer, LayerOutput which) {
     return s;
 }
 
+// Six wavelengths of Stam's layer (albedo 0.95 to 0.5) at 8 ordinates, the faces shared (solve_spectral).
+const std::vector<Slab<double>>& six_slabs() {
+    static const std::vector<Slab<double>> slabs = [] {
+        std::vector<Slab<double>> v;
+        for (double albedo : {0.95, 0.9, 0.85, 0.75, 0.6, 0.5}) v.push_back(Slab<double>::from_transparency(albedo, 0.8, 0.5));
+        return v;
+    }();
+    return slabs;
+}
+std::vector<LayeredSurface<double>> six_layers() {
+    LayerOptions o;
+    o.ordinates = 8;
+    return solve_spectral(six_slabs(), RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0), o);
+}
+
 }  // namespace
 
 TEST_CASE("fourier_coefficients: the series sums to subsurface_brdf and btdf, cosine-weighted") {
@@ -612,13 +627,7 @@ TEST_CASE("TabulatedBSDF with six channels: every channel's eval is its own inte
     // eval(wi, wo, values) interpolates the luminance and the stored channels four series a pass; coefficients()
     // interpolates one channel at a time (the derived one from the luminance and the others). Transmission (no
     // surface lobe): values[c] |wo.z| must be the channel's series at cos(dphi), clamped at 0, to rounding.
-    LayerOptions o;
-    o.ordinates = 8;
-    std::vector<Slab<double>> slabs;
-    for (double albedo : {0.95, 0.9, 0.85, 0.75, 0.6, 0.5}) slabs.push_back(Slab<double>::from_transparency(albedo, 0.8, 0.5));
-    const std::vector<LayeredSurface<double>> layers =
-        solve_spectral(slabs, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0), o);
-    const TabulatedBSDF<double> table(layers, 1e-2, {0.1, 0.3, 0.1, 0.2, 0.2, 0.1});  // channel 1 the derived one
+    const TabulatedBSDF<double> table(six_layers(), 1e-2, {0.1, 0.3, 0.1, 0.2, 0.2, 0.1});  // channel 1 the derived one
     REQUIRE(table.channels() == 6);
     std::mt19937_64 rng(23);
     std::vector<double> a(TabulatedBSDF<double>::max_order);
@@ -655,14 +664,11 @@ TEST_CASE("TabulatedBSDF: sample with every channel's value is sample() with eva
     // both transport modes.
     LayerOptions o;
     o.ordinates = 8;
-    std::vector<Slab<double>> slabs;
-    for (double albedo : {0.95, 0.9, 0.85, 0.75, 0.6, 0.5}) slabs.push_back(Slab<double>::from_transparency(albedo, 0.8, 0.5));
-    const std::vector<LayeredSurface<double>> six =
-        solve_spectral(slabs, RoughDielectric<double>(0.3, 1.0, 1.4), RoughDielectric<double>(0.3, 1.4, 1.0), o);
+    const std::vector<LayeredSurface<double>> six = six_layers();
     const std::vector<LayeredSurface<double>> three(six.begin(), six.begin() + 3);
     const std::vector<LayeredSurface<double>> smooth =
-        solve_spectral(std::vector<Slab<double>>(slabs.begin(), slabs.begin() + 3), SmoothDielectric<double>(1.0, 1.5),
-                       SmoothDielectric<double>(1.5, 1.0), o);
+        solve_spectral(std::vector<Slab<double>>(six_slabs().begin(), six_slabs().begin() + 3),
+                       SmoothDielectric<double>(1.0, 1.5), SmoothDielectric<double>(1.5, 1.0), o);
     std::vector<TabulatedBSDF<double>> tables;
     tables.emplace_back(six, 1e-2, std::vector<double>{0.1, 0.3, 0.1, 0.2, 0.2, 0.1});  // derived: channel 1
     tables.emplace_back(three, 1e-2, std::vector<double>{0.2126, 0.7152, 0.0722});      // derived: green
