@@ -451,7 +451,7 @@ TEST_CASE("pdf_radius stays finite for extreme coefficients (found by fuzz_point
     CHECK(skin.pdf_radius(r) == doctest::Approx(st * st * r * std::exp(-st * r)).epsilon(1e-15));
 }
 
-TEST_CASE("R_d is 0 without scattering even where a pole overflows (found by review)") {
+TEST_CASE("R_d is 0 without scattering, and finite where a pole alone overflows (found by review)") {
     // alpha' = 0 makes the prefactor 0; at r = 0 the poles' 1 / z^2 overflow (z_r = 1e-20 in float), and 0 x inf
     // was NaN.
     CHECK(stratum::Dipole<float>(1e20f, 0.0f, 1.3f).Rd(0.0f) == 0.0f);
@@ -459,6 +459,24 @@ TEST_CASE("R_d is 0 without scattering even where a pole overflows (found by rev
     CHECK(stratum::Dipole<double>::from_albedo(0.0, 1e-300, 1.3).Rd(0.0) == 0.0);
     CHECK(stratum::Dipole<double>(1.0, 0.0, 1.3).Rd(0.5) == 0.0);
     CHECK(stratum::Dipole<double>(1.0, 1e-300, 1.3).Rd(0.5) >= 0.0);
+    // A tiny alpha' > 0: the result is representable although 1 / z_r^3 is not (float: 1e60); it was inf. Against
+    // the formula in long double from the dipole's own parameters.
+    const auto formula = [](const auto& d, long double r) {
+        const long double st = d.sigma_tr();
+        long double sum = 0;
+        for (const long double z : {static_cast<long double>(d.z_r()), static_cast<long double>(d.z_v())}) {
+            const long double dist = std::sqrt(r * r + z * z), x = st * dist;
+            sum += z * (x + 1) * std::exp(-x) / (dist * dist * dist);
+        }
+        return static_cast<long double>(d.alpha_prime()) / (4 * 3.14159265358979323846L) * sum;
+    };
+    const stratum::Dipole<float> dense(1e20f, 1e-10f, 1.3f);
+    for (const float r : {0.0f, 1e-21f, 1e-20f}) {
+        CAPTURE(r);
+        const float got = dense.Rd(r);
+        REQUIRE(std::isfinite(got));
+        CHECK(std::fabs(got - formula(dense, r)) <= 1e-5L * formula(dense, r));
+    }
 }
 
 TEST_CASE("sample_radius follows pdf_radius (chi-square, 60 bins)") {

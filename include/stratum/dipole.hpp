@@ -357,10 +357,8 @@ public:
     /// of entry. Finite at r = 0, -> 0 as r -> inf (0 for r = inf); even in r.
     STRATUM_HOST_DEVICE Real Rd(Real r) const noexcept {
         const Real r2 = r * r;
-        // (alpha' = 0: 0, where a pole 1 / d^2 can overflow and 0 * inf is NaN: sigma_t' 1e20 in float, 1e-300 x
-        // 1e300 in double; found by review)
-        if (!(r2 < std::numeric_limits<Real>::infinity()) || !(prefactor_ > 0)) return Real(0);
-        return prefactor_ * (pole(r2, z_r_) + pole(r2, z_v_));
+        if (!(r2 < std::numeric_limits<Real>::infinity())) return Real(0);
+        return pole(r, r2, z_r_) + pole(r, r2, z_v_);
     }
 
     /// int_0^inf R_d(r) 2 pi r dr = total_diffuse_reflectance(alpha', boundary).
@@ -405,11 +403,16 @@ private:
 
     /// z (sigma_tr d + 1) e^{-sigma_tr d} / d^3 with d = sqrt(r^2 + z^2); 1/d cubed as a product so that
     /// a huge d underflows to 0 instead of overflowing first.
-    STRATUM_HOST_DEVICE Real pole(Real r2, Real z) const noexcept {
-        const Real d = std::sqrt(r2 + z * z), inv = 1 / d;
+    // One pole's term of R_d, prefactor z (x + 1) e^{-x} / d^3 with d = sqrt(r^2 + z^2), x = sigma_tr d, formed so
+    // that no partial product overflows unless the result does: the prefactor and z / d (<= 1) first, then 1 / d twice
+    // (for the tiny z of a huge sigma_t', 1 / d^3 alone overflowed: inf for float sigma_t' 1e20, and NaN times
+    // alpha' = 0; found by review), and d by hypot where r^2 + z^2 is below the normal range (z^2 underflows first).
+    STRATUM_HOST_DEVICE Real pole(Real r, Real r2, Real z) const noexcept {
+        const Real d2 = r2 + z * z;
+        const Real d = d2 >= std::numeric_limits<Real>::min() ? std::sqrt(d2) : std::hypot(r, z), inv = 1 / d;
         const Real x = sigma_tr_ * d;
         if (!(x < std::numeric_limits<Real>::infinity())) return Real(0);  // (x + 1) e^{-x} -> 0, not inf * 0
-        return z * (x + 1) * std::exp(-x) * inv * inv * inv;
+        return (x + 1) * std::exp(-x) * (prefactor_ * (z * inv)) * inv * inv;
     }
 
     Real sigma_a_ = 0, sigma_s_prime_ = 0, sigma_t_prime_ = 0, alpha_prime_ = 0, sigma_tr_ = 0;

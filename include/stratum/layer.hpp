@@ -812,12 +812,6 @@ struct PreparedStack {
     bool any_rough = false;                          // a rough boundary anywhere, top and bottom included
 };
 
-/// Prepares the slabs (delta-M, phase matrices, the semi-infinite shortcut) and the interior faces' operators.
-/// Interior faces of a stack: the adding equations multiply a face's energy error by the bounces between the faces
-/// around it, so under SpecularTransmission::automatic a smooth interior face is flux_conserving both ways (exact
-/// energy per ordinate). Pointwise out of the denser medium created up to 26% of the incident energy at M = 4 and
-/// 2% at M = 16 (thin slabs between smooth faces; tests/test_layer_inputs.cpp). An explicit choice is kept
-/// (README, known limitations).
 /// The optical thickness (delta-M scaled) below which a slab scatters as a film (tau = 0; prepare_stack): 1e5 eps
 /// times the smallest ordinate, where the losses of light trapped by total internal reflection, O(tau / mu), are
 /// 1e3 times the rounding of the slab's eigen-solution (~100 eps, measured: the trapped fluence 1.4% off at
@@ -828,6 +822,12 @@ Real film_limit(const Quadrature<Real>& q) noexcept {
     return std::fmin(Real(1e5) * eps, std::sqrt(eps)) * q.nodes.front();
 }
 
+/// Prepares the slabs (delta-M, phase matrices, the semi-infinite shortcut) and the interior faces' operators.
+/// Interior faces of a stack: the adding equations multiply a face's energy error by the bounces between the faces
+/// around it, so under SpecularTransmission::automatic a smooth interior face is flux_conserving both ways (exact
+/// energy per ordinate). Pointwise out of the denser medium created up to 26% of the incident energy at M = 4 and
+/// 2% at M = 16 (thin slabs between smooth faces; tests/test_layer_inputs.cpp). An explicit choice is kept
+/// (README, known limitations).
 template <class Real>
 PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
                                   const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
@@ -2272,9 +2272,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     // prepare_stack): a slab's R and T carry absolute errors ~eps (slab.hpp), and light trapped between the faces at
     // the ordinates below a critical cosine, which enters and leaves only by scattering, divides two such O(tau)
     // quantities (a smooth | smooth slab of tau = 1e-12 at grazing incidence created 1.2e-11 of 5.8e-9 entering,
-    // measured). There, and where the phase
-    // function is aliased on the ordinates (solve_modes), the beam is spread over the ordinates instead, with its
-    // energy made exact (scattering_scale).
+    // measured). There, and where the phase function is aliased on the ordinates (solve_modes), the beam is spread
+    // over the ordinates instead, with its energy made exact (scattering_scale).
     bool beam = detail::beam_is_a_source(top, interior, bottom) &&
                 (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs));
     for (const detail::SlabModes<Real>& p : stack.slabs)
