@@ -177,31 +177,22 @@ void BM_tabulated_eval_rgb(benchmark::State& state) {
 }
 BENCHMARK(BM_tabulated_eval_rgb);
 
-void BM_tabulated_sample_rgb(benchmark::State& state) {
+// sample() with every channel's value, in importance transport and in radiance transport (a path tracer from the
+// camera, as examples/render_sphere.cpp: the arguments exchanged, so the values are evaluated anew, with the
+// luminance, in one pass).
+void sample_rgb(benchmark::State& state, stratum::TransportMode mode) {
     static const Inputs<double> in;
     const auto& t = rgb_table();
     double v[3];
     std::size_t i = 0;
     for (auto _ : state) {
-        benchmark::DoNotOptimize(t.sample(in.wi[i], in.u[3 * i], in.u[3 * i + 1], in.u[3 * i + 2], v));
+        benchmark::DoNotOptimize(t.sample(in.wi[i], in.u[3 * i], in.u[3 * i + 1], in.u[3 * i + 2], v, mode));
         i = (i + 1) & 1023;
     }
 }
+void BM_tabulated_sample_rgb(benchmark::State& state) { sample_rgb(state, stratum::TransportMode::importance); }
 BENCHMARK(BM_tabulated_sample_rgb);
-
-// The same in radiance transport (a path tracer from the camera, as examples/render_sphere.cpp): the arguments
-// exchanged, so the values are evaluated anew (with the luminance, in one pass).
-void BM_tabulated_sample_rgb_radiance(benchmark::State& state) {
-    static const Inputs<double> in;
-    const auto& t = rgb_table();
-    double v[3];
-    std::size_t i = 0;
-    for (auto _ : state) {
-        benchmark::DoNotOptimize(
-            t.sample(in.wi[i], in.u[3 * i], in.u[3 * i + 1], in.u[3 * i + 2], v, stratum::TransportMode::radiance));
-        i = (i + 1) & 1023;
-    }
-}
+void BM_tabulated_sample_rgb_radiance(benchmark::State& state) { sample_rgb(state, stratum::TransportMode::radiance); }
 BENCHMARK(BM_tabulated_sample_rgb_radiance);
 
 }  // namespace

@@ -475,7 +475,7 @@ TEST_CASE("R_d is 0 without scattering, and finite where a pole alone overflows 
         CAPTURE(r);
         const float got = dense.Rd(r);
         REQUIRE(std::isfinite(got));
-        CHECK(std::fabs(got - formula(dense, r)) <= 1e-5L * formula(dense, r));
+        CHECK(std::fabs(got - formula(dense, r)) <= 1e-6L * formula(dense, r));  // (measured 1.5e-7: 1.3 float eps)
     }
 }
 

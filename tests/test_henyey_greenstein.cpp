@@ -8,6 +8,7 @@
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -589,7 +590,7 @@ TEST_CASE("closed-form Fourier coefficients for a tiny g near the pole: no NaN (
         HenyeyGreenstein<R>(g).fourier_coefficients(mu, mu, modes, p.data());
         CAPTURE(static_cast<double>(g));
         CAPTURE(static_cast<double>(mu));
-        CHECK(p[0] == doctest::Approx(1.0).epsilon(1e-6));
+        CHECK(std::fabs(p[0] - R(1)) <= 4 * std::numeric_limits<R>::epsilon());
         for (int k = 1; k < modes; ++k) {
             CHECK(std::isfinite(p[static_cast<std::size_t>(k)]));
             CHECK(std::fabs(p[static_cast<std::size_t>(k)]) <= 1e-30);

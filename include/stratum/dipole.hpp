@@ -401,12 +401,11 @@ private:
         total_ = total_diffuse_reflectance(alpha_prime_, boundary_);
     }
 
-    /// z (sigma_tr d + 1) e^{-sigma_tr d} / d^3 with d = sqrt(r^2 + z^2); 1/d cubed as a product so that
-    /// a huge d underflows to 0 instead of overflowing first.
-    // One pole's term of R_d, prefactor z (x + 1) e^{-x} / d^3 with d = sqrt(r^2 + z^2), x = sigma_tr d, formed so
-    // that no partial product overflows unless the result does: the prefactor and z / d (<= 1) first, then 1 / d twice
-    // (for the tiny z of a huge sigma_t', 1 / d^3 alone overflowed: inf for float sigma_t' 1e20, and NaN times
-    // alpha' = 0; found by review), and d by hypot where r^2 + z^2 is below the normal range (z^2 underflows first).
+    /// One pole's term of R_d, prefactor z (x + 1) e^{-x} / d^3 with d = sqrt(r^2 + z^2), x = sigma_tr d, formed so
+    /// that no partial product overflows unless the result does: the prefactor and z / d (<= 1) first, then 1 / d
+    /// twice, so a huge d underflows to 0 and the tiny z of a huge sigma_t' gives a finite value (1 / d^3 alone
+    /// overflowed: inf for float sigma_t' 1e20, NaN times alpha' = 0; found by review); d by hypot where r^2 + z^2 is
+    /// below the normal range (z^2 underflows first).
     STRATUM_HOST_DEVICE Real pole(Real r, Real r2, Real z) const noexcept {
         const Real d2 = r2 + z * z;
         const Real d = d2 >= std::numeric_limits<Real>::min() ? std::sqrt(d2) : std::hypot(r, z), inv = 1 / d;

@@ -576,11 +576,9 @@ private:
             out.delta = true;
             out.reflected = lobe == 3;
             out.pdf = p[lobe] / al.total;
-            out.value = p[lobe] / std::fabs(out.wo.z);
-            if (mode == TransportMode::radiance && !out.reflected) out.value *= s->radiance_factor();
-            const Real scale = (mode == TransportMode::radiance && !out.reflected ? s->radiance_factor() : Real(1)) /
-                               std::fabs(out.wo.z);
-            const Real mu_i = detail::clamp_unit(w.z);
+            const Real factor = mode == TransportMode::radiance && !out.reflected ? s->radiance_factor() : Real(1);
+            out.value = p[lobe] / std::fabs(out.wo.z) * factor;
+            const Real scale = factor / std::fabs(out.wo.z), mu_i = detail::clamp_unit(w.z);
             const int nc = channels();
             for (int c = 0; with_values && c < nc; ++c) {  // each channel's power fraction
                 const int row = nc > 1 ? c + 1 : 0;
