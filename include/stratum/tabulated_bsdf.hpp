@@ -482,6 +482,16 @@ public:
     Real tolerance() const noexcept { return tolerance_; }
     /// The largest error measured at construction, in the units of `tolerance` (the worse side).
     Real error() const noexcept { return std::fmax(sides_[0]->error, sides_[1] ? sides_[1]->error : Real(0)); }
+    /// The largest difference, as fractions of the incident flux, between the table's albedo (albedo(): what a white
+    /// furnace measures of sample()) and the layer's own fluxes (reflectance(mu).total() with the surface lobe where
+    /// it was requested, transmittance(mu); the luminance's for several channels), at the grid's nodes but mu = 0,
+    /// for the lobes the layer was solved for. error() measures the table against the layer's BRDF and BTDF; this
+    /// measures the layer's BRDF and BTDF against its fluxes, which the discretization does not make agree
+    /// everywhere: light leaving through a nearly specular rough face near the normal (README, known limitations),
+    /// strongly backward-scattering media. The table then creates or loses that much energy.
+    Real energy_error() const noexcept {
+        return std::fmax(sides_[0]->energy_error, sides_[1] ? sides_[1]->energy_error : Real(0));
+    }
     /// Grid nodes per cosine of the side lit from above.
     int grid_size() const noexcept { return sides_[0]->n(); }
     /// Bytes held by the tables (both sides).
@@ -692,7 +702,7 @@ private:
         // channels.
         std::vector<Real> beam_reflected, beam_transmitted;
         Real eta_above = 1, eta_below = 1;             // outside the top and below the bottom
-        Real error = 0;
+        Real error = 0, energy_error = 0;
         // Channels: their luminance weights, and the one not stored (it follows from the luminance and the others).
         int channels = 1, derived = 0;
         std::vector<Real> luminance;
@@ -1056,6 +1066,9 @@ private:
     template <class LayerReal>
     static Side tabulate(const std::vector<const LayeredSurface<LayerReal>*>& layers, const std::vector<Real>& luminance,
                          Real tolerance);
+    template <class LayerReal>
+    static Real energy_mismatch(const Side& s, const std::vector<const LayeredSurface<LayerReal>*>& layers,
+                                const std::vector<Real>& luminance);
 
     // The layers of every channel (validated: the same faces), and the luminance weights (normalized to sum 1).
     template <class LayerReal>
@@ -1311,7 +1324,38 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
             }
         }
     }
+    s.energy_error = energy_mismatch(s, layers, luminance);
     return s;
+}
+
+// TabulatedBSDF::energy_error of one side: its albedo at the nodes (mu > 0) against the layers' fluxes, weighted by
+// the luminance for several channels; reflection where the subsurface reflection was tabulated (the surface's
+// reflectance with it where the surface lobe was), transmission where the transmission was.
+template <class Real>
+template <class LayerReal>
+Real TabulatedBSDF<Real>::energy_mismatch(const Side& s, const std::vector<const LayeredSurface<LayerReal>*>& layers,
+                                          const std::vector<Real>& luminance) {
+    const LayerOutput outputs = layers.front()->outputs();
+    const bool reflection = includes(outputs, LayerOutput::subsurface_reflection);
+    const bool surface = includes(outputs, LayerOutput::surface_reflection);
+    const bool transmission = includes(outputs, LayerOutput::transmission);
+    Real worst = 0;
+    for (std::size_t j = 1; j < s.t.size(); ++j) {
+        const Real mu = detail::parameter_cosine(s.t[j]);
+        const Albedos a = s.albedos(s.weights(mu), mu);
+        LayerReal r = 0, t = 0;
+        for (std::size_t c = 0; c < layers.size(); ++c) {
+            const LayerReal w = layers.size() > 1 ? static_cast<LayerReal>(luminance[c]) : LayerReal(1);
+            if (reflection || surface) {
+                const auto flux = layers[c]->reflectance(static_cast<LayerReal>(mu));
+                r += w * ((surface ? flux.surface : LayerReal(0)) + (reflection ? flux.subsurface : LayerReal(0)));
+            }
+            if (transmission) t += w * layers[c]->transmittance(static_cast<LayerReal>(mu));
+        }
+        if (reflection || surface) worst = std::fmax(worst, std::fabs(a.surface + a.reflection + a.mirror - static_cast<Real>(r)));
+        if (transmission) worst = std::fmax(worst, std::fabs(a.transmission + a.straight - static_cast<Real>(t)));
+    }
+    return worst;
 }
 
 }  // namespace stratum
