@@ -140,3 +140,20 @@ TEST_CASE("BSSRDF: Hery's recipe gives the painted colour and mean free path; mi
     const DipoleBSSRDF<float, 3> f(make_dipoles<float, 3>({0.032f, 0.17f, 0.48f}, {0.74f, 0.88f, 1.01f}, 1.3f));
     CHECK(f.pdf({0.3f, 0.1f, 0.0f}, {0.0f, 0.0f, 1.0f}) == doctest::Approx(skin().pdf({0.3, 0.1, 0.0}, {0, 0, 1})).epsilon(1e-5));
 }
+
+TEST_CASE("BSSRDF: the probe density stays a number where sigma_tr^2 overflows (found by the renderer sweep)") {
+    // float sigma_tr ~ 1e30: sigma_tr^2 overflows, and on the axes the normal is perpendicular to 0 x inf was NaN.
+    const DipoleBSSRDF<float, 1> tiny({Dipole<float>::from_reflectance(0.5f, 1e-30f, 1.3f)});
+    REQUIRE(tiny.channels()[0].sigma_tr() > 1e20f);
+    const float at_origin = tiny.pdf({0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f});
+    CHECK_FALSE(std::isnan(at_origin));  // inf: the density there exceeds float's range
+    // At u = sigma_tr r = 60 the density sigma_tr^2 e^{-60} / (4 pi) (the z axis, half the probability) is within
+    // float's range: finite and as in double (sigma_tr^2 alone overflowed to inf there).
+    const double s = tiny.channels()[0].sigma_tr();
+    const float r = static_cast<float>(60 / s);
+    const float p = tiny.pdf({r, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f});
+    const double r_float = static_cast<double>(r);  // the distance as float holds it
+    CHECK(std::isfinite(p));
+    CHECK(p == doctest::Approx(0.5 * s * s * std::exp(-s * r_float) / (2 * 3.141592653589793)).epsilon(1e-4));
+    CHECK(tiny.pdf({1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}) == 0.0f);  // far out: e^{-u} underflows
+}

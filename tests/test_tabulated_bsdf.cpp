@@ -766,6 +766,13 @@ TEST_CASE("TabulatedBSDF with channels: per-channel deltas between smooth faces,
     CHECK_THROWS_AS(TabulatedBSDF<double>(layers, 1e-2, {0.5, 0.5}), std::invalid_argument);
     CHECK_THROWS_AS(TabulatedBSDF<double>(layers, 1e-2, {0.5, 0.5, 0.0}), std::invalid_argument);
     CHECK_THROWS_AS(TabulatedBSDF<double>(std::vector<LayeredSurface<double>>{}, 1e-2), std::invalid_argument);
+    // Weights near the largest double are weights like any other (their sum overflowed, and every weight was 0;
+    // found by the renderer sweep).
+    const TabulatedBSDF<double> huge(layers, 1e-2, {1e308, 1e308, 1e308});
+    const Vec3<double> wi{0.3, 0.1, std::sqrt(0.9)}, wo{-0.2, 0.4, -std::sqrt(0.8)};
+    CHECK(rgb.eval(wi, wo) > 0);
+    CHECK(huge.eval(wi, wo) == doctest::Approx(rgb.eval(wi, wo)).epsilon(1e-12));
+    CHECK(huge.albedo(0.5).transmittance == doctest::Approx(rgb.albedo(0.5).transmittance).epsilon(1e-12));
 }
 
 TEST_CASE("TabulatedBSDF: sampling restricted by Lobe") {

@@ -121,8 +121,13 @@ public:
     /// distance from po perpendicular to the axis and p_c(r) = sigma_tr^2 e^{-sigma_tr r} / (2 pi) the channel's
     /// radial density per unit area.
     Real pdf(Vec3<Real> d, Vec3<Real> n) const noexcept {
-        const Real x2 = d.x * d.x, y2 = d.y * d.y, z2 = d.z * d.z;
-        const Real r[3] = {std::sqrt(y2 + z2), std::sqrt(z2 + x2), std::sqrt(x2 + y2)};
+        // sqrt(a^2 + b^2), by hypot where the squares underflow or overflow (float distances below ~1e-19, where
+        // the profile of a sigma_tr beyond 1e19 still lives).
+        const auto length = [](Real a, Real b) noexcept {
+            const Real q = a * a + b * b;
+            return q >= std::numeric_limits<Real>::min() && q <= std::numeric_limits<Real>::max() ? std::sqrt(q) : std::hypot(a, b);
+        };
+        const Real r[3] = {length(d.y, d.z), length(d.z, d.x), length(d.x, d.y)};
         const Real cos_axis[3] = {std::fabs(n.x), std::fabs(n.y), std::fabs(n.z)};
         const Real prob[3] = {Real(0.25), Real(0.25), Real(0.5)};
         Real total = 0;
@@ -130,9 +135,12 @@ public:
             Real sum = 0;
             for (const Dipole<Real>& ch : channels_) {
                 const Real s = ch.sigma_tr(), u = s * r[a];
-                sum += u < std::numeric_limits<Real>::infinity() ? s * s * std::exp(-u) : Real(0);
+                // s^2 e^{-u} = (s e^{-u/2})^2: s^2 alone overflows for sigma_tr beyond sqrt(max) (1.8e19 in float),
+                // and 0 x inf was NaN on an axis the normal is perpendicular to (found by the renderer sweep).
+                const Real root = s * std::exp(-u / 2);
+                sum += u < std::numeric_limits<Real>::infinity() ? root * root : Real(0);
             }
-            total += prob[a] * cos_axis[a] * sum / (Real(N) * 2 * detail::pi_v<Real>);
+            if (cos_axis[a] > 0) total += prob[a] * cos_axis[a] * sum / (Real(N) * 2 * detail::pi_v<Real>);
         }
         return total;
     }

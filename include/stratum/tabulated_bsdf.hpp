@@ -1093,8 +1093,14 @@ private:
         if (w.size() != channels)
             detail::fail_invalid_argument("stratum: TabulatedBSDF: " + std::to_string(w.size()) + " luminance weights for " +
                                           std::to_string(channels) + " channels");
+        Real largest = 0;
+        for (Real x : w)
+            largest = std::fmax(largest, detail::require_open("TabulatedBSDF luminance weight", x, Real(0),
+                                                              std::numeric_limits<Real>::infinity()));
+        // Scaled by the largest first: weights near the largest finite value summed to inf, and every weight became 0
+        // (found by the renderer sweep).
         Real sum = 0;
-        for (Real x : w) sum += detail::require_open("TabulatedBSDF luminance weight", x, Real(0), std::numeric_limits<Real>::infinity());
+        for (Real& x : w) sum += (x /= largest);
         for (Real& x : w) x /= sum;
         return w;
     }
