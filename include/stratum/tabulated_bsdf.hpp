@@ -592,8 +592,8 @@ private:
             const int nc = channels();
             for (int c = 0; with_values && c < nc; ++c) {  // each channel's power fraction
                 const int row = nc > 1 ? c + 1 : 0;
-                values[c] = scale * (out.reflected ? (s->mirror ? s->mirror->reflectance(mu_i) : Real(0)) + s->beam(s->beam_reflected, si, row)
-                                                   : s->beam(s->beam_transmitted, si, row));
+                values[c] = scale * (out.reflected ? (s->mirror ? s->mirror->reflectance(mu_i) : Real(0)) + s->beam(s->beam_reflected, si, row, mu_i)
+                                                   : s->beam(s->beam_transmitted, si, row, mu_i));
             }
         } else {
             // value and pdf as eval and pdf give them, computed once (in the side's frame): a tabulated lobe's
@@ -700,7 +700,12 @@ private:
         std::optional<SmoothDielectric<Real>> mirror;  // a smooth top's Fresnel reflection
         // Deltas between specular faces at the nodes: [c n + j], c = 0 the luminance (or the one channel), then the
         // channels.
+        // Stored as shares of the light a smooth top lets in (its 1 - F(mu_i), `entry`, exact at any mu_i): with the
+        // top's own reflection analytic and the rest splined, their sum overshot 1 near grazing, where F changes fast
+        // (a glass slab's albedo 1.048 at mu = 0.004; renderer sweep). A non-absorbing slab's shares sum to 1 at every
+        // node, and so do their splines.
         std::vector<Real> beam_reflected, beam_transmitted;
+        std::optional<SmoothDielectric<Real>> entry;
         Real eta_above = 1, eta_below = 1;             // outside the top and below the bottom
         Real error = 0, energy_error = 0;
         // Channels: their luminance weights, and the one not stored (it follows from the luminance and the others).
@@ -888,10 +893,11 @@ private:
         }
 
         // The deltas' power fractions of channel `series` (0: the luminance or the one channel; c + 1: channel c).
-        Real beam(const std::vector<Real>& v, const detail::SplineWeights<Real>& si, int series) const noexcept {
+        Real beam(const std::vector<Real>& v, const detail::SplineWeights<Real>& si, int series, Real mu_i) const noexcept {
             if (v.empty()) return Real(0);
             Real s = 0;
             for (int a = 0; a < 4; ++a) s += si.even[a] * v[static_cast<std::size_t>(series * n() + si.first + a)];
+            if (entry) s *= entry->transmittance(mu_i);
             return s > 0 ? s : Real(0);
         }
 
@@ -912,8 +918,8 @@ private:
             al.surface = surface ? interpolate(surface_albedo) : Real(0);
             al.reflection = lobe_albedo(reflection);
             al.transmission = lobe_albedo(transmission);
-            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + beam(beam_reflected, si, 0);
-            al.straight = beam(beam_transmitted, si, 0);
+            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + beam(beam_reflected, si, 0, mu_i);
+            al.straight = beam(beam_transmitted, si, 0, mu_i);
             if (!allows(allowed, true, false)) al.surface = al.reflection = 0;
             if (!allows(allowed, false, false)) al.transmission = 0;
             if (!allows(allowed, true, true)) al.mirror = 0;
@@ -1314,13 +1320,20 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
         const std::size_t rows = channels > 1 ? static_cast<std::size_t>(channels) + 1 : 1;
         s.beam_reflected.assign(rows * nodes, Real(0));
         s.beam_transmitted.assign(rows * nodes, Real(0));
+        if (!layer.top().rough() && layer.top().eta_above() != layer.top().eta_below())
+            s.entry.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
         for (int c = 0; c < channels; ++c) {
             const LayeredSurface<L>& l = *layers[static_cast<std::size_t>(c)];
             const std::size_t row = channels > 1 ? static_cast<std::size_t>(c) + 1 : 0;
             const Real w = channels > 1 ? luminance[static_cast<std::size_t>(c)] : Real(1);
             for (std::size_t j = 0; j < nodes; ++j) {
-                const Real r = static_cast<Real>(l.direct_reflectance(at(j)) + l.forward_peak_reflectance(at(j)));
-                const Real t = static_cast<Real>(l.direct_transmittance(at(j)) + l.forward_peak_transmittance(at(j)));
+                // At mu = 0, where no light arrives and the layer answers 0, a tenth of the next node's cosine, as the
+                // lobes are evaluated: a 0 there made the spline overshoot towards the next node (the albedo of an
+                // empty index-matched layer 1.074 at mu = 0.067, a glass slab's 1.036 at 0.006; renderer sweep).
+                const L mu = j == 0 ? at(1) / 10 : at(j);
+                const L in = s.entry ? l.top().smooth_interface().transmittance(mu) : L(1);
+                const Real r = in > 0 ? static_cast<Real>((l.direct_reflectance(mu) + l.forward_peak_reflectance(mu)) / in) : Real(0);
+                const Real t = in > 0 ? static_cast<Real>((l.direct_transmittance(mu) + l.forward_peak_transmittance(mu)) / in) : Real(0);
                 s.beam_reflected[row * nodes + j] = r;
                 s.beam_transmitted[row * nodes + j] = t;
                 if (channels > 1) {
