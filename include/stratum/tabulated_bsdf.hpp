@@ -467,7 +467,10 @@ public:
         const detail::FourierTable<Real>& tab = transmitted ? s->transmission : s->reflection;
         if (tab.empty()) return 0;
         const detail::SplineWeights<Real> si = s->weights(detail::clamp_unit(mu_i)), so = s->weights(detail::clamp_unit(mu_o));
-        return channel < 0 ? s->interpolate(tab, si, so, out) : s->channel_series(tab, si, so, channel, out);
+        const int order = channel < 0 ? s->interpolate(tab, si, so, out) : s->channel_series(tab, si, so, channel, out);
+        const Real in = s->entering(detail::clamp_unit(mu_i));
+        for (int k = 0; k < order; ++k) out[k] *= in;
+        return order;
     }
     /// The top's rough interface whose reflection the table keeps analytic (none for a smooth or index-matched top,
     /// or when the surface reflection was not requested).
@@ -700,12 +703,15 @@ private:
         std::optional<SmoothDielectric<Real>> mirror;  // a smooth top's Fresnel reflection
         // Deltas between specular faces at the nodes: [c n + j], c = 0 the luminance (or the one channel), then the
         // channels.
-        // Stored as shares of the light a smooth top lets in (its 1 - F(mu_i), `entry`, exact at any mu_i): with the
-        // top's own reflection analytic and the rest splined, their sum overshot 1 near grazing, where F changes fast
-        // (a glass slab's albedo 1.048 at mu = 0.004; renderer sweep). A non-absorbing slab's shares sum to 1 at every
-        // node, and so do their splines.
         std::vector<Real> beam_reflected, beam_transmitted;
+        // A smooth top that changes the index: the tabulated lobes and the beams are stored as shares of the light it
+        // lets in, 1 - F(mu_i) (entering(), exact at any mu_i), which vanishes at grazing incidence where the shares
+        // do not. Splined whole beside the top's analytic reflection, they summed to more than 1 near grazing, where
+        // F changes fast, and the lobes' node at mu = 0 (taken at a tenth of the next node's cosine) held light that
+        // cannot arrive there: a glass slab's albedo 1.048 at mu = 0.004 with tau = 0, 1.038 at 0.006 with tau = 1
+        // (renderer sweep). A non-absorbing slab's shares sum to 1 at every node, and so do their splines.
         std::optional<SmoothDielectric<Real>> entry;
+        Real entering(Real mu_i) const noexcept { return entry ? entry->transmittance(mu_i) : Real(1); }
         Real eta_above = 1, eta_below = 1;             // outside the top and below the bottom
         Real error = 0, energy_error = 0;
         // Channels: their luminance weights, and the one not stored (it follows from the luminance and the others).
@@ -813,7 +819,7 @@ private:
             const detail::SplineWeights<Real> so = detail::spline_weights(n(), t_o);
             Real c[kMaxOrder];
             const int order = interpolate(tab, si, so, c);
-            const Real g = detail::cosine_series(c, order, cos_dphi(wi, wo));
+            const Real g = detail::cosine_series(c, order, cos_dphi(wi, wo)) * entering(detail::clamp_unit(wi.z));
             LobeValue v;
             v.value = g > 0 ? g : Real(0);
             if (density && order > 0 && c[0] > 0) v.density = sampled_density(tab, si, so, t_o, c[0], v.value);
@@ -889,7 +895,9 @@ private:
                 }
                 out[derived] = rest / luminance[static_cast<std::size_t>(derived)];
             }
-            for (int ch = 0; ch < channels; ++ch) out[ch] = out[ch] > 0 ? out[ch] : Real(0);
+            const Real in = entering(detail::clamp_unit(wi.z));
+            for (int ch = 0; ch < channels; ++ch) out[ch] = out[ch] > 0 ? out[ch] * in : Real(0);
+            if (luminance_value) *luminance_value *= in;
         }
 
         // The deltas' power fractions of channel `series` (0: the luminance or the one channel; c + 1: channel c).
@@ -897,7 +905,7 @@ private:
             if (v.empty()) return Real(0);
             Real s = 0;
             for (int a = 0; a < 4; ++a) s += si.even[a] * v[static_cast<std::size_t>(series * n() + si.first + a)];
-            if (entry) s *= entry->transmittance(mu_i);
+            s *= entering(mu_i);
             return s > 0 ? s : Real(0);
         }
 
@@ -913,7 +921,7 @@ private:
             auto lobe_albedo = [&](const detail::FourierTable<Real>& tab) {
                 if (tab.empty()) return Real(0);
                 const Real c = cdf(tab, si, n() - 1);
-                return c > 0 ? 2 * detail::pi_v<Real> * c : Real(0);
+                return c > 0 ? 2 * detail::pi_v<Real> * c * entering(mu_i) : Real(0);
             };
             al.surface = surface ? interpolate(surface_albedo) : Real(0);
             al.reflection = lobe_albedo(reflection);
@@ -985,11 +993,14 @@ private:
             // The value as lobe() (eval, pdf) computes it at wo: the same summation at cos_dphi(wi, wo), which is
             // 1 at the pole (wi or wo along the normal, only mode 0 seen). (The sampler's own g at phi, from another
             // recurrence, differs by ~1e-15 of sum |c_k|: too much, relative to g, in a lobe's tails at 100 modes.)
-            const Real cos_dphi_o = cos_dphi(wi, out.wo);
+            const Real cos_dphi_o = cos_dphi(wi, out.wo), in = entering(detail::clamp_unit(wi.z));
             const Real g = detail::cosine_series(c, order, cos_dphi_o);
-            out.at.value = g > 0 ? g : Real(0);
+            out.at.value = g > 0 ? g * in : Real(0);
             out.at.density = sampled_density(tab, si, so, t_o, c[0], out.at.value);
-            if (channel_values && channels > 1) stored_channel_values(tab, si, so, cos_dphi_o, g, channel_values);
+            if (channel_values && channels > 1) {
+                stored_channel_values(tab, si, so, cos_dphi_o, g, channel_values);
+                for (int ch = 0; ch < channels; ++ch) channel_values[ch] *= in;
+            }
             return out;
         }
 
@@ -1141,6 +1152,22 @@ void layer_lobes(const LayeredSurface<L>& layer, const std::vector<Real>& t, Den
         out[w] = {static_cast<int>(t.size()), layer.modes(), layer.fourier_coefficients(which[w], mu_i, mu_o)};
 }
 
+// Divides row i (incidence t_i, the cosines layer_lobes used) of both lobes by entry(mu_i) (TabulatedBSDF::Side::entry).
+template <class L, class Entry>
+void divide_rows(DenseLobe<L> lobes[2], Entry entry) {
+    for (int w = 0; w < 2; ++w) {
+        DenseLobe<L>& d = lobes[w];
+        for (int i = 0; i < d.n && d.modes > 0; ++i) {
+            const L t = L(i) / L(d.n - 1), next = L(1) / L(d.n - 1);
+            const L mu = i == 0 ? static_cast<L>(parameter_cosine(next)) / 10 : static_cast<L>(parameter_cosine(t));
+            const L in = entry(mu);
+            if (!(in > 0)) continue;
+            L* row = d.a.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(d.n) * static_cast<std::size_t>(d.modes);
+            for (std::size_t j = 0; j < static_cast<std::size_t>(d.n) * static_cast<std::size_t>(d.modes); ++j) row[j] /= in;
+        }
+    }
+}
+
 // The largest mu_i sum_k |a_k(table) - a_k(fine)| over the fine grid's nodes (2n - 1 of them, every other one
 // the table's): the worst error of f |wi.z| |wo.z| at any dphi.
 template <class Real, class L>
@@ -1266,6 +1293,8 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
     } else if (surface) {
         s.mirror.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
     }
+    if (!layer.top().rough() && !layer.top().lambertian() && layer.top().eta_above() != layer.top().eta_below())
+        s.entry.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
     // Refine until every channel's table of n nodes is within tolerance at the nodes of 2n - 1 (129 nodes at most).
     // fine[w][c]: lobe w (reflection, transmission) of channel c on the finer grid; the luminance last.
     std::vector<detail::DenseLobe<L>> fine[2];
@@ -1276,6 +1305,7 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
         for (int c = 0; c < channels; ++c) {
             detail::DenseLobe<L> pair[2];
             detail::layer_lobes(*layers[static_cast<std::size_t>(c)], detail::grid_parameters<Real>(2 * n - 1), pair);
+            if (s.entry) detail::divide_rows(pair, [&](L mu) { return layer.top().smooth_interface().transmittance(mu); });
             for (int w = 0; w < 2; ++w) fine[w][static_cast<std::size_t>(c)] = std::move(pair[w]);
         }
         L err = 0;
@@ -1320,8 +1350,7 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
         const std::size_t rows = channels > 1 ? static_cast<std::size_t>(channels) + 1 : 1;
         s.beam_reflected.assign(rows * nodes, Real(0));
         s.beam_transmitted.assign(rows * nodes, Real(0));
-        if (!layer.top().rough() && layer.top().eta_above() != layer.top().eta_below())
-            s.entry.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
+
         for (int c = 0; c < channels; ++c) {
             const LayeredSurface<L>& l = *layers[static_cast<std::size_t>(c)];
             const std::size_t row = channels > 1 ? static_cast<std::size_t>(c) + 1 : 0;
