@@ -232,9 +232,10 @@ void check_chi_square(const TabulatedBSDF<double>& table, Vec3<double> wi, std::
 TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's fluxes, where they disagree too") {
     // Stam's skin: the layer's BRDF and BTDF integrate to its fluxes (measured 2.3e-5 at the nodes). Faces of RMS
     // slope 0.05 lit at the normal: the beam enters onto the last ordinate and leaves by interpolation near the
-    // pole, and the BTDF integrates to 0.92 where transmittance() is 0.743 (found by the renderer sweep: the table's
-    // white furnace 1.10); error(), the table against the layer's BTDF, cannot see it, energy_error() does
-    // (measured 0.107, at mu = 1). Strongly backward scattering (g = -0.95, README): 0.085.
+    // pole, and the BTDF integrates to 0.793 where transmittance() is 0.741 (0.92 against 0.743, a white furnace of
+    // 1.10 in the table, before the spread stopped extrapolating beyond the last ordinate; renderer sweep); error(),
+    // the table against the layer's BTDF, cannot see it, energy_error() does (measured 0.052, at mu = 1). Strongly
+    // backward scattering (g = -0.95, README): 0.085.
     const TabulatedBSDF<double> good(skin(), 1e-2);
     CHECK(good.energy_error() <= 1e-4);
     LayerOptions o;
@@ -243,7 +244,7 @@ TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's f
                                                       RoughDielectric<double>(0.05, 1.4, 1), o);
     const TabulatedBSDF<double> bad(narrow, 1e-2);
     const double gap = std::fabs(bad.albedo(1).transmittance - narrow.transmittance(1));
-    CHECK(gap > 0.05);
+    CHECK(gap > 0.03);
     CHECK(bad.energy_error() >= gap);
     CHECK(bad.energy_error() <= gap + 1e-3);  // (the worst node is the normal)
     const TabulatedBSDF<double> backward(
@@ -438,7 +439,10 @@ TEST_CASE("TabulatedBSDF from a layer whose faces were tabulated: the same table
     const TabulatedBSDF<double> plain(solve_layer(slab, top, bottom, o), 1e-2);
     const TabulatedBSDF<double> fast(solve_layer(slab, top, bottom, o, faces), 1e-2);
     CHECK(fast.grid_size() == plain.grid_size());
-    CHECK(fast.error() == doctest::Approx(plain.error()).epsilon(1e-6));
+    // error() is measured against the layer between the grid's nodes, where the face tables interpolate: since the
+    // specular spread no longer extrapolates beyond the last ordinate its weights have a kink at that ordinate's
+    // image, and at 8 ordinates (where the spread's share is large) the two error() differ by 1.2% (1e-6 before).
+    CHECK(fast.error() == doctest::Approx(plain.error()).epsilon(2e-2));
     std::mt19937_64 rng(21);
     double worst = 0;
     for (int n = 0; n < 400; ++n) {
