@@ -171,7 +171,7 @@ public:
     /// D = min(36, 1.5 n) for n points per panel
     /// (e^{-36} ~ 2e-16; the panels' own accuracy falls with n likewise). Measured on the rough-interface kernels
     /// against the panels at 32 points (sigma 0.01 to 10, n 1 | 1.0001 to 1 | 4 and 1.33 | 1, every shadowing form,
-    /// M 3 to 48): within 1.8e-13 of the largest coefficient, where the panels at 24 points are within 4e-12
+    /// M 3 to 40): within 1.8e-13 of the largest coefficient, where the panels at 24 points are within 4e-12
     /// (tests/test_interface_operators.cpp). A narrow peak or a strip narrower than ~1 (grazing pairs) needs more
     /// samples than the graded panels: those stay on the panels.
     int trapezoid_intervals(const AzimuthalFeatures<Real>& features, int modes) const noexcept {
@@ -221,16 +221,18 @@ public:
 
 private:
     // The J at which the bound above on I_j(kappa) / I_0(kappa), e^{-g(J)} with g(J) = J asinh(J / kappa) -
-    // kappa (sqrt(1 + (J / kappa)^2) - 1) (increasing and convex in J, g' = asinh(J / kappa)), reaches e^{-D}: Newton
-    // from the larger of the two asymptotes' roots, from which it decreases monotonically.
+    // kappa (sqrt(1 + (J / kappa)^2) - 1) (increasing and convex in J, g' = asinh(J / kappa)), reaches e^{-D}: Newton's
+    // method from max(sqrt(2 D kappa), D), the roots of the two asymptotes. g being convex, an iterate below the root
+    // (the start, for kappa above ~14) is followed by one above it, and from there the iterates decrease to the root:
+    // the last one is never below it (stopped at a step of 1e-3 J).
     static Real peak_bandwidth(Real kappa, Real digits) noexcept {
         if (!(kappa > 0)) return Real(0);
-        Real j = std::fmax(std::sqrt(2 * digits * kappa), digits);  // g(j) >= D at both
-        for (int it = 0; it < 8; ++it) {
+        Real j = std::fmax(std::sqrt(2 * digits * kappa), digits);
+        for (int it = 0; it < 16; ++it) {
             const Real x = j / kappa, g = j * std::asinh(x) - kappa * (std::sqrt(1 + x * x) - 1);
             const Real step = (g - digits) / std::asinh(x);
             j -= step;
-            if (!(step > Real(1e-3) * j)) break;
+            if (step >= 0 && !(step > Real(1e-3) * j)) break;
         }
         return j;
     }
