@@ -246,7 +246,7 @@ TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's f
     const double gap = std::fabs(bad.albedo(1).transmittance - narrow.transmittance(1));
     CHECK(gap > 0.03);
     CHECK(bad.energy_error() >= gap);
-    CHECK(bad.energy_error() <= gap + 1e-3);  // (the worst node is the normal)
+    CHECK(bad.energy_error() <= gap + 2e-3);  // (the worst node is at or next to the normal: 0.0535 against 0.0527)
     const TabulatedBSDF<double> backward(
         solve_layer(Slab<double>(1.0, -0.95, 1.0), SmoothDielectric<double>(1, 1.4), SmoothDielectric<double>(1.4, 1), o), 1e-2);
     CHECK(backward.energy_error() > 0.05);
@@ -441,10 +441,7 @@ TEST_CASE("TabulatedBSDF from a layer whose faces were tabulated: the same table
     const TabulatedBSDF<double> plain(solve_layer(slab, top, bottom, o), 1e-2);
     const TabulatedBSDF<double> fast(solve_layer(slab, top, bottom, o, faces), 1e-2);
     CHECK(fast.grid_size() == plain.grid_size());
-    // error() is measured against the layer between the grid's nodes, where the face tables interpolate: since the
-    // specular spread no longer extrapolates beyond the last ordinate its weights have a kink at that ordinate's
-    // image, and at 8 ordinates (where the spread's share is large) the two error() differ by 1.2% (1e-6 before).
-    CHECK(fast.error() == doctest::Approx(plain.error()).epsilon(2e-2));
+    CHECK(fast.error() == doctest::Approx(plain.error()).epsilon(1e-6));
     std::mt19937_64 rng(21);
     double worst = 0;
     for (int n = 0; n < 400; ++n) {

@@ -601,10 +601,12 @@ private:
             out.value = p[lobe] / std::fabs(out.wo.z) * factor;
             const Real scale = factor / std::fabs(out.wo.z), mu_i = detail::clamp_unit(w.z);
             const int nc = channels();
+            const Real in = with_values ? s->entering(mu_i) : Real(1);
+            const Real mirror = with_values && out.reflected && s->mirror ? s->mirror->reflectance(mu_i) : Real(0);
             for (int c = 0; with_values && c < nc; ++c) {  // each channel's power fraction
                 const int row = nc > 1 ? c + 1 : 0;
-                values[c] = scale * (out.reflected ? (s->mirror ? s->mirror->reflectance(mu_i) : Real(0)) + s->beam(s->beam_reflected, si, row, mu_i)
-                                                   : s->beam(s->beam_transmitted, si, row, mu_i));
+                values[c] = scale * (out.reflected ? mirror + s->beam(s->beam_reflected, si, row, in)
+                                                   : s->beam(s->beam_transmitted, si, row, in));
             }
         } else {
             // value and pdf as eval and pdf give them, computed once (in the side's frame): a tabulated lobe's
@@ -909,11 +911,12 @@ private:
         }
 
         // The deltas' power fractions of channel `series` (0: the luminance or the one channel; c + 1: channel c).
-        Real beam(const std::vector<Real>& v, const detail::SplineWeights<Real>& si, int series, Real mu_i) const noexcept {
+        // (`in`: entering(mu_i).)
+        Real beam(const std::vector<Real>& v, const detail::SplineWeights<Real>& si, int series, Real in) const noexcept {
             if (v.empty()) return Real(0);
             Real s = 0;
             for (int a = 0; a < 4; ++a) s += si.even[a] * v[static_cast<std::size_t>(series * n() + si.first + a)];
-            s *= entering(mu_i);
+            s *= in;
             return s > 0 ? s : Real(0);
         }
 
@@ -926,16 +929,17 @@ private:
                 for (int a = 0; a < 4; ++a) s += si.even[a] * v[static_cast<std::size_t>(si.first + a)];
                 return s > 0 ? s : Real(0);
             };
+            const Real in = entering(mu_i);
             auto lobe_albedo = [&](const detail::FourierTable<Real>& tab) {
                 if (tab.empty()) return Real(0);
                 const Real c = cdf(tab, si, n() - 1);
-                return c > 0 ? 2 * detail::pi_v<Real> * c * entering(mu_i) : Real(0);
+                return c > 0 ? 2 * detail::pi_v<Real> * c * in : Real(0);
             };
             al.surface = surface ? interpolate(surface_albedo) : Real(0);
             al.reflection = lobe_albedo(reflection);
             al.transmission = lobe_albedo(transmission);
-            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + beam(beam_reflected, si, 0, mu_i);
-            al.straight = beam(beam_transmitted, si, 0, mu_i);
+            al.mirror = (mirror ? mirror->reflectance(mu_i) : Real(0)) + beam(beam_reflected, si, 0, in);
+            al.straight = beam(beam_transmitted, si, 0, in);
             if (!allows(allowed, true, false)) al.surface = al.reflection = 0;
             if (!allows(allowed, false, false)) al.transmission = 0;
             if (!allows(allowed, true, true)) al.mirror = 0;
@@ -1147,31 +1151,30 @@ struct DenseLobe {
     }
 };
 
-// The coefficients of both lobes of `layer` on the grid t (the incidence at t = 0 taken at a tenth of the next
-// node's cosine: the BRDF does not vanish at grazing incidence, although no light arrives there).
-template <class Real, class L>
-void layer_lobes(const LayeredSurface<L>& layer, const std::vector<Real>& t, DenseLobe<L> out[2]) {
-    std::vector<L> mu_o(t.size());
-    for (std::size_t j = 0; j < t.size(); ++j) mu_o[j] = static_cast<L>(parameter_cosine(t[j]));
-    std::vector<L> mu_i = mu_o;
-    mu_i[0] = mu_o[1] / 10;
-    const LayerOutput which[2] = {LayerOutput::subsurface_reflection, LayerOutput::transmission};
-    for (int w = 0; w < 2; ++w)
-        out[w] = {static_cast<int>(t.size()), layer.modes(), layer.fourier_coefficients(which[w], mu_i, mu_o)};
+// The incidence cosine at which the layer is evaluated for node j of the grid t: the node's, and at t = 0 a tenth
+// of the next node's (the BRDF does not vanish at grazing incidence, although no light arrives there).
+template <class L, class Real>
+L node_incidence(const std::vector<Real>& t, std::size_t j) {
+    return j == 0 ? static_cast<L>(parameter_cosine(t[1])) / 10 : static_cast<L>(parameter_cosine(t[j]));
 }
 
-// Divides row i (incidence t_i, the cosines layer_lobes used) of both lobes by entry(mu_i) (TabulatedBSDF::Side::entry).
-template <class L, class Entry>
-void divide_rows(DenseLobe<L> lobes[2], Entry entry) {
+// The coefficients of both lobes of `layer` on the grid t (incidences node_incidence), each row divided by
+// `entry` of its incidence cosine where that is given (TabulatedBSDF::Side::entry).
+template <class Real, class L>
+void layer_lobes(const LayeredSurface<L>& layer, const std::vector<Real>& t, const SmoothDielectric<L>* entry,
+                 DenseLobe<L> out[2]) {
+    std::vector<L> mu_o(t.size()), mu_i(t.size());
+    for (std::size_t j = 0; j < t.size(); ++j) {
+        mu_o[j] = static_cast<L>(parameter_cosine(t[j]));
+        mu_i[j] = node_incidence<L>(t, j);
+    }
+    const LayerOutput which[2] = {LayerOutput::subsurface_reflection, LayerOutput::transmission};
     for (int w = 0; w < 2; ++w) {
-        DenseLobe<L>& d = lobes[w];
-        for (int i = 0; i < d.n && d.modes > 0; ++i) {
-            const L t = L(i) / L(d.n - 1), next = L(1) / L(d.n - 1);
-            const L mu = i == 0 ? static_cast<L>(parameter_cosine(next)) / 10 : static_cast<L>(parameter_cosine(t));
-            const L in = entry(mu);
-            if (!(in > 0)) continue;
-            L* row = d.a.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(d.n) * static_cast<std::size_t>(d.modes);
-            for (std::size_t j = 0; j < static_cast<std::size_t>(d.n) * static_cast<std::size_t>(d.modes); ++j) row[j] /= in;
+        out[w] = {static_cast<int>(t.size()), layer.modes(), layer.fourier_coefficients(which[w], mu_i, mu_o)};
+        const std::size_t row = t.size() * static_cast<std::size_t>(out[w].modes);
+        for (std::size_t i = 0; entry && i < t.size(); ++i) {
+            const L in = entry->transmittance(mu_i[i]);
+            for (std::size_t j = 0; in > 0 && j < row; ++j) out[w].a[i * row + j] /= in;
         }
     }
 }
@@ -1314,8 +1317,8 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
         for (int w = 0; w < 2; ++w) fine[w].assign(static_cast<std::size_t>(channels), {});
         for (int c = 0; c < channels; ++c) {
             detail::DenseLobe<L> pair[2];
-            detail::layer_lobes(*layers[static_cast<std::size_t>(c)], detail::grid_parameters<Real>(2 * n - 1), pair);
-            if (s.entry) detail::divide_rows(pair, [&](L mu) { return layer.top().smooth_interface().transmittance(mu); });
+            detail::layer_lobes(*layers[static_cast<std::size_t>(c)], detail::grid_parameters<Real>(2 * n - 1),
+                                s.entry ? &layer.top().smooth_interface() : nullptr, pair);
             for (int w = 0; w < 2; ++w) fine[w][static_cast<std::size_t>(c)] = std::move(pair[w]);
         }
         L err = 0;
@@ -1369,7 +1372,7 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
                 // At mu = 0, where no light arrives and the layer answers 0, a tenth of the next node's cosine, as the
                 // lobes are evaluated: a 0 there made the spline overshoot towards the next node (the albedo of an
                 // empty index-matched layer 1.074 at mu = 0.067, a glass slab's 1.036 at 0.006; renderer sweep).
-                const L mu = j == 0 ? at(1) / 10 : at(j);
+                const L mu = detail::node_incidence<L>(s.t, j);
                 const L in = s.entry ? l.top().smooth_interface().transmittance(mu) : L(1);
                 const Real r = in > 0 ? static_cast<Real>((l.direct_reflectance(mu) + l.forward_peak_reflectance(mu)) / in) : Real(0);
                 const Real t = in > 0 ? static_cast<Real>((l.direct_transmittance(mu) + l.forward_peak_transmittance(mu)) / in) : Real(0);
