@@ -987,7 +987,7 @@ class LayeredSurface {
 public:
     /// Scratch memory for evaluation (sized on first use).
     struct Workspace {
-        std::vector<Real> in, out, c, field, shape, row, row_all;
+        std::vector<Real> in, out, c, field, shape, row, row_all, spread;
         // between specular faces (the beam as a source): the field of an incidence computed on the fly, the slab's
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
@@ -1314,9 +1314,9 @@ private:
         const bool extrapolate = extrapolates(mu_t, top);
         specular_spread(top, spread_point(mu_t, extrapolate), spread_points(extrapolate), ws, modes);
         if (top.rough() && mu_t > q_.nodes.back() && q_.size() >= 8) {  // (see extrapolates)
-            const std::vector<Real> last = ws.in;
+            std::swap(ws.in, ws.spread);  // the last ordinate's stencil, kept
             specular_spread(top, mu_t, 4, ws, modes);
-            for (std::size_t i = 0; i < m; ++i) ws.in[i] = (1 - specular_share) * ws.in[i] + specular_share * last[i];
+            for (std::size_t i = 0; i < m; ++i) ws.in[i] = (1 - specular_share) * ws.in[i] + specular_share * ws.spread[i];
         }
         for (std::size_t i = 0; i < m; ++i) {
             const Real base = specular_share * flux * ws.in[i] / (q_.weights[i] * q_.nodes[i]);
