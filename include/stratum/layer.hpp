@@ -87,6 +87,7 @@ struct LayerOptions {
     /// Rough boundaries: Gauss nodes per panel of those hemispherical integrals (RoughDielectric::hemispherical_totals,
     /// 2 to 32). Measured at sigma 0.3, n 1 | 1.4: 16 within 1e-9, 12 1.3e-7, 10 5.8e-7 in 0.45 of 16's time, 8 2.7e-5;
     /// Stam's layer at M = 24 solves in 0.79 of the time at 10 (docs/accuracy.md, "the rough faces' integrals").
+    /// A request with a tolerance caps it, and azimuthal_points, at what the tolerance needs (integrals_for_tolerance).
     int hemispherical_nodes = 16;
     /// Rough boundaries: Gauss points per panel of the azimuthal rule of their operators (AzimuthalQuadrature, >= 2):
     /// 24 within ~1e-13 of converged, 12 ~5e-7 of an entry (docs/accuracy.md, "azimuthal rule"). The panels that
@@ -136,7 +137,10 @@ struct LayerRequest {
     /// after two consecutive modes whose operators are below tolerance relative to mode 0 (rough faces not prepared
     /// are built for the modes it is expected to need, and for all where the loop goes on: docs/physics.md
     /// section 6); (b) a slab with e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode) is solved
-    /// as semi-infinite when neither transmission nor transmittance is requested.
+    /// as semi-infinite when neither transmission nor transmittance is requested; (c) rough faces built for the solve
+    /// (not prepared ones) take their integrals no finer than the tolerance needs: LayerOptions::hemispherical_nodes
+    /// and ::azimuthal_points capped at 9 and 6 from 1e-2, 10 and 8 from 1e-3, 12 and 12 from 1e-4, 16 points from
+    /// 1e-6 (integrals_for_tolerance: their errors stay 35 times or more inside the tolerance).
     Real tolerance = 0;
     /// Tabulate, at the solve, the rough faces' couplings between every outside cosine and the ordinates (the
     /// azimuthal integrals of their BTDF that brdf, btdf, reflectance and transmittance compute at an incidence or exit
@@ -156,6 +160,26 @@ struct LayerRequest {
     /// seventh of the time (tabulated_bsdf.hpp).
     bool tabulate_faces = false;
 };
+
+/// `options` with the rough faces' integrals no finer than a tolerance needs: LayerOptions::hemispherical_nodes and
+/// ::azimuthal_points, each capped so that its worst error stays 35 times or more inside the tolerance. A solve
+/// with LayerRequest::tolerance builds its rough faces so (and the planner its levels); faces prepared with these
+/// options give that solve's result bit for bit (PreparedBoundary), faces prepared with `options` the same within
+/// the integrals' error. Measured (docs/accuracy.md, "the rough faces' integrals"): the hemispherical
+/// totals' worst absolute error over sigma 0.003 to 20, n 1 | 1.001 to 1 | 4 either way up, both sides, every
+/// shadowing form, at 8, 24 and 48 ordinates: 1.4e-4 / 2.8e-5 / 2.9e-6 at 9 / 10 / 12 nodes (16: ~1e-9); the
+/// azimuthal rule's worst entry relative to its column's peak (sigma 0.02 to 1): 7.3e-5 / 5.9e-6 / 4.7e-7 / 1.3e-8
+/// at 6 / 8 / 12 / 16 points. The options unchanged without a tolerance.
+template <class Real>
+LayerOptions integrals_for_tolerance(LayerOptions options, Real tolerance) noexcept {
+    if (!(tolerance > 0)) return options;
+    const double t = static_cast<double>(tolerance);
+    const int nodes = t >= 1e-2 ? 9 : t >= 1e-3 ? 10 : t >= 1e-4 ? 12 : options.hemispherical_nodes;
+    const int points = t >= 1e-2 ? 6 : t >= 1e-3 ? 8 : t >= 1e-4 ? 12 : t >= 1e-6 ? 16 : options.azimuthal_points;
+    options.hemispherical_nodes = std::min(options.hemispherical_nodes, nodes);
+    options.azimuthal_points = std::min(options.azimuthal_points, points);
+    return options;
+}
 
 /// A boundary of a layer: rough (Beckmann microfacets), specular (smooth or index-matched), or an opaque
 /// Lambertian floor (the bottom of a layer only). Converts implicitly from RoughDielectric and SmoothDielectric.
@@ -432,7 +456,8 @@ struct CouplingCache {
 /// ::renormalization, ::hemispherical_nodes and ::azimuthal_points. They depend on the face alone, never on the slab, and are most of a rough-faced solve's cost:
 /// prepare the faces once and pass them to solve_layer / solve_stack for every slab (an edit of albedo, g or
 /// thickness, another wavelength), which then pays for the slab alone. The result is identical to a solve from
-/// the plain Boundary, bit for bit, when the request solves all the prepared modes; a request for fewer
+/// the plain Boundary, bit for bit, when the request solves all the prepared modes (with a tolerance, from faces
+/// prepared with integrals_for_tolerance(options, tolerance), as the plain solve builds them); a request for fewer
 /// (LayerRequest::max_modes, or no angular output: fluxes and the ambient term need mode 0 alone) uses the
 /// prepared operators, whose azimuthal rule resolves more modes than it needs: equal within that rule's error
 /// (1e-12 at the default 24 points; ~5e-7 at 12). A specular (smooth or index-matched) face has cheap operators and keeps none: they are built
@@ -834,7 +859,7 @@ PreparedStack<Real> prepare_stack(const Boundary<Real>& top, const std::vector<S
                                   const Quadrature<Real>& q, int modes, const LayerOptions& options,
                                   const LayerRequest<Real>& request, const std::vector<SharedOperators<Real>>& prepared) {
     PreparedStack<Real> stack;
-    LayerOptions interior_options = options;
+    LayerOptions interior_options = integrals_for_tolerance(options, request.tolerance);
     if (interior_options.specular_transmission == SpecularTransmission::automatic)
         interior_options.specular_transmission = SpecularTransmission::flux_conserving;
     stack.any_rough = top.rough() || bottom.rough();
@@ -2269,10 +2294,13 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
 
     // 2. A rough face built here for a request with a tolerance gets the modes it is expected to need, and more if
     // the solve reaches them (extend_faces); prepared faces hold all.
+    // Their integrals are no finer than the tolerance needs (integrals_for_tolerance).
     const int face_modes = detail::first_face_modes(request.tolerance, modes);
+    const LayerOptions face_options = integrals_for_tolerance(options, request.tolerance);
     const auto face = [&](const Boundary<Real>& b, const detail::SharedOperators<Real>& ready) {
         return ready ? ready
-                     : std::make_shared<const InterfaceOperators<Real>>(b.operators(s.q_, b.rough() ? face_modes : modes, options));
+                     : std::make_shared<const InterfaceOperators<Real>>(
+                           b.operators(s.q_, b.rough() ? face_modes : modes, face_options));
     };
     s.top_ops_ = face(top, prepared.top);
     s.bottom_turned_top_ = !prepared.bottom && detail::turned_over(top, bottom);
@@ -3058,9 +3086,10 @@ std::vector<LayeredSurface<Real>> solve_spectral(const std::vector<Slab<Real>>& 
                                                  const detail::non_deduced_t<Boundary<Real>>& bottom,
                                                  const LayerOptions& options = {},
                                                  const detail::non_deduced_t<LayerRequest<Real>>& request = {}) {
-    const PreparedBoundary<Real> prepared_top(top, options);
+    const LayerOptions face_options = integrals_for_tolerance(options, request.tolerance);  // (as solve_layer's)
+    const PreparedBoundary<Real> prepared_top(top, face_options);
     const PreparedBoundary<Real> prepared_bottom =
-        detail::turned_over(top, bottom) ? prepared_top.turned_over() : PreparedBoundary<Real>(bottom, options);
+        detail::turned_over(top, bottom) ? prepared_top.turned_over() : PreparedBoundary<Real>(bottom, face_options);
     std::vector<LayeredSurface<Real>> layers;
     layers.reserve(slabs.size());
     for (const Slab<Real>& slab : slabs) layers.push_back(solve_layer(slab, prepared_top, prepared_bottom, request));

@@ -104,8 +104,8 @@ template <class Real = double>
 struct Plan {
     Model model = Model::closed_form;
     /// The discretization of the final solve: the ordinates chosen, the modes prepared (1 for fluxes alone, 0 = 2M
-    /// otherwise) and, at tolerances of 1e-4 and above, cheaper integrals for rough faces (hemispherical_nodes,
-    /// azimuthal_points); the rest default.
+    /// otherwise) and the rough faces' integrals no finer than the tolerance needs (hemispherical_nodes,
+    /// azimuthal_points: integrals_for_tolerance, as LayerRequest::tolerance); the rest default.
     LayerOptions options;
     LayerRequest<Real> request;   ///< what the final solve computed
     Real estimated_error = 0;     ///< estimated largest absolute error of the checked fluxes (0: closed form; finite otherwise)
@@ -343,14 +343,9 @@ struct Levels {
 template <class Real>
 Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene,
                           const Checked<Real>& checked, Plan<Real>& plan) {
-    // Integrals no finer than the tolerance needs (LayerOptions): the rough faces' hemispherical integrals at 10
-    // nodes from 1e-3 (worst 9e-6, at sigma 0.3, n 2.5), at 12 from 1e-4 (about 5 times less), and their azimuthal
-    // rule at 12 points (~5e-7) from 1e-4. Every level shares this error, which the estimate cannot see: it is
-    // kept 50 to 100 times inside the tolerance.
-    if (scene.tolerance >= Real(1e-4)) {
-        plan.options.hemispherical_nodes = scene.tolerance >= Real(1e-3) ? 10 : 12;
-        plan.options.azimuthal_points = 12;
-    }
+    // Integrals no finer than the tolerance needs, as a plain solve with this tolerance takes them: every level
+    // shares their error, which the estimate cannot see, so it is kept 35 times or more inside the tolerance.
+    plan.options = integrals_for_tolerance(plan.options, scene.tolerance);
     std::vector<Real> previous, changes;
     std::optional<PreparedFaces<Real>> faces, before;
     std::vector<LayeredSurface<Real>> last;
