@@ -63,10 +63,11 @@ Matrix<Real> one_minus_product(const Matrix<Real>& a, const Matrix<Real>& b) {
 namespace detail {
 
 /// The half of the adding for light from above (out.reflection_down, out.transmission_down); x receives
-/// (I - R1u R2d)^{-1} T1d, the down-going light between the components per unit coming in.
+/// (I - R1u R2d)^{-1} T1d, the down-going light between the components per unit coming in. Without `transmission`
+/// out.transmission_down = T2d x is left empty (a caller that needs only x, or applies T2d x to fewer columns).
 template <class Real>
 void add_from_above(const ComponentOperators<Real>& top, const ComponentOperators<Real>& bottom, Matrix<Real>& x,
-                    ComponentOperators<Real>& out) {
+                    ComponentOperators<Real>& out, bool transmission = true) {
     const std::size_t n = top.size;
     x = as_matrix(n, top.transmission_down);
     const Matrix<Real> r2d = as_matrix(n, bottom.reflection_down);
@@ -76,7 +77,7 @@ void add_from_above(const ComponentOperators<Real>& top, const ComponentOperator
     for (std::size_t i = 0; i < n * n; ++i) rd.data[i] += r1d.data[i];
     out.size = n;
     out.reflection_down = std::move(rd.data);
-    out.transmission_down = multiply(as_matrix(n, bottom.transmission_down), x).data;
+    if (transmission) out.transmission_down = multiply(as_matrix(n, bottom.transmission_down), x).data;
 }
 
 /// The half of the adding for light from below (out.reflection_up, out.transmission_up): the half from above

@@ -927,13 +927,15 @@ template <class Real>
 struct StackMode {
     ComponentOperators<Real> middle;  // the slabs and the interior faces
     ComponentOperators<Real> bottom;  // the bottom face
-    ComponentOperators<Real> lower;   // middle + bottom: S = lower.reflection_down (the upward half only if asked)
+    ComponentOperators<Real> lower;   // middle + bottom: S = lower.reflection_down (the transmission down and the
+                                      // upward half only if asked)
     Matrix<Real> x;                   // (I - R_mid,up R_23)^{-1} T_mid,down: down-going light above the bottom face
     Real slab_size = 0;               // the largest diffuse_size of the slabs (the mode cutoff between specular faces)
 };
 
 // solved: where not null, every slab's mode as solved (with its eigen-solution) is kept there; upward: whether the
-// lower part's operators for light from below are needed (the whole layer's operators).
+// lower part's operators for light from below and its transmission down are needed (the whole layer's operators,
+// unless the layer is the same seen from below).
 template <class Real>
 StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOperators<Real>& bottom,
                            const Quadrature<Real>& q, int k, std::vector<SlabModeSolution<Real>>* solved = nullptr,
@@ -954,7 +956,7 @@ StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOper
         s.middle = add_components(s.middle, next);
     }
     s.bottom = interface_component(bottom, k);
-    add_from_above(s.middle, s.bottom, s.x, s.lower);
+    add_from_above(s.middle, s.bottom, s.x, s.lower, upward);
     if (upward) add_from_below(s.middle, s.bottom, s.lower);
     return s;
 }
@@ -2038,6 +2040,7 @@ private:
     Boundary<Real> top_, bottom_;
     detail::SharedOperators<Real> top_ops_, bottom_ops_;  // null when nothing was solved; shared with PreparedBoundary
     bool bottom_turned_top_ = false;                       // bottom_ops_ is top_ops_ flipped (built with it)
+    bool symmetric_ = false;  // one slab between a rough face and that face turned over: the same seen from below
     Quadrature<Real> q_;
     int modes_ = 0;
     LayerOutput outputs_ = LayerOutput::all;
@@ -2304,6 +2307,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     };
     s.top_ops_ = face(top, prepared.top);
     s.bottom_turned_top_ = !prepared.bottom && detail::turned_over(top, bottom);
+    s.symmetric_ = slabs.size() == 1 && detail::turned_over(top, bottom);  // (prepared faces too: equal bit for bit)
     if (s.bottom_turned_top_)
         s.bottom_ops_ = std::make_shared<const InterfaceOperators<Real>>(s.top_ops_->flipped());  // (bit for bit)
     else
@@ -2499,7 +2503,7 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
             }
         } else {
             below = detail::stack_mode(stack, *bottom_ops_, q_, k, beam_ ? &solved : nullptr,
-                                       includes(outputs_, LayerOutput::operators));
+                                       includes(outputs_, LayerOutput::operators) && !symmetric_);
             slab_size = below->slab_size;
         }
         // An aliased phase function (regularized operators: slab.hpp) does not scatter the beam as it scatters the
@@ -2669,7 +2673,9 @@ void LayeredSurface<Real>::add_beam_mode(int k, std::vector<detail::SlabModeSolu
 // lower part (detail::StackMode). When requested, the whole layer's operators, the top face added to the lower
 // part L through A (adding.hpp's equations, (I - S R_21)^{-1} = I + Q_b R_21 by the push-through identity):
 //     R_d = R_12 + T_21 Q_b T_12,   T_d = T_L,d A T_12,
-//     R_u = R_L,u + T_L,d R_21 Y,   T_u = T_21 Y,   Y = (I + Q_b R_21) T_L,u.
+//     R_u = R_L,u + T_L,d R_21 Y,   T_u = T_21 Y,   Y = (I + Q_b R_21) T_L,u,
+// or, for one slab between a rough face and that face turned over (Stam's skin layer), R_u = R_d and T_u = T_d:
+// the layer seen from below is the layer seen from above (the lower part's upward half is then not computed).
 template <class Real>
 void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Real>& below) {
     using detail::Matrix;
@@ -2684,14 +2690,22 @@ void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Re
     if (!includes(outputs_, LayerOutput::operators)) return;
     const Matrix<Real> t12 = detail::mode_matrix(top_ops_->T12(), k), t21 = detail::mode_matrix(top_ops_->T21(), k);
     const Matrix<Real>& qb = qb_.back();
-    const Matrix<Real> lower_td = detail::as_matrix(m, below.lower.transmission_down);
     ComponentOperators<Real> w;
     w.size = m;
     Matrix<Real> rd = multiply(t21, multiply(qb, t12));
     const Real* r12 = top_ops_->R12().mode(k);
     for (std::size_t i = 0; i < m * m; ++i) rd.data[i] += r12[i];
     w.reflection_down = std::move(rd.data);
-    w.transmission_down = multiply(lower_td, multiply(a, t12)).data;
+    // T_d = T_L,d A T_12 = T_23 X A T_12 = T_23 Q_e T_12 (T_L,d = T_23 X: detail::add_from_above)
+    const Matrix<Real> qe = detail::needs_transmitted(outputs_) ? qe_.back() : multiply(below.x, a);
+    w.transmission_down = multiply(detail::as_matrix(m, below.bottom.transmission_down), multiply(qe, t12)).data;
+    if (symmetric_) {  // the layer seen from below is the layer seen from above: 6 of the 10 products saved
+        w.reflection_up = w.reflection_down;
+        w.transmission_up = w.transmission_down;
+        whole_.push_back(std::move(w));
+        return;
+    }
+    const Matrix<Real> lower_td = detail::as_matrix(m, below.lower.transmission_down);
     Matrix<Real> y = detail::as_matrix(m, below.lower.transmission_up);
     const Matrix<Real> bounce = multiply(qb, multiply(r21, y));
     for (std::size_t i = 0; i < m * m; ++i) y.data[i] += bounce.data[i];
