@@ -140,6 +140,46 @@ void layer_growth() {
     }
 }
 
+// ---- Rough faces: the hemispherical integrals' nodes over a sweep (integrals_for_tolerance's figures) -------------
+void hemispherical_nodes_sweep() {
+    std::printf("\n## Layer solver: the hemispherical integrals' Gauss nodes over a sweep\n\n"
+                "`RoughDielectric::hemispherical_totals(mu, n)` against n = 32: the largest absolute difference in R or "
+                "T over sigma 0.003 to 20 (12 values), n 1 | 1.001, 1.05, 1.33, 1.5, 2.5, 4 either way up, light from "
+                "either side at the 24 ordinates of a half-range rule, every shadowing form (10,368 integrals per "
+                "row); where it occurs; and the time of all of them. `integrals_for_tolerance` (layer.hpp) takes 9 / "
+                "10 / 12 nodes from tolerances 1e-2 / 1e-3 / 1e-4 (the default: 16).\n\n"
+                "| nodes | worst difference | at sigma, n_below / n_above, mu, shadowing | time (s) |\n|---|---|---|---|\n");
+    const double sigmas[] = {0.003, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.6, 1.0, 2.0, 5.0, 20.0};
+    const double indices[] = {1.001, 1.05, 1.33, 1.5, 2.5, 4.0};
+    const int nodes[] = {8, 9, 10, 12, 16};
+    const stratum::Quadrature<double> q = stratum::gauss_legendre_half<double>(24);
+    struct Worst { double error = 0, sigma = 0, eta = 0, mu = 0; int form = 0; double seconds = 0; };
+    Worst worst[5];
+    for (int form = 0; form < 3; ++form)
+        for (const double sigma : sigmas)
+            for (const double n : indices)
+                for (const bool flip : {false, true}) {
+                    const stratum::RoughDielectric<double> face(sigma, flip ? n : 1.0, flip ? 1.0 : n,
+                                                                static_cast<stratum::Shadowing>(form));
+                    for (const double node : q.nodes)
+                        for (const double mu : {node, -node}) {
+                            const auto reference = face.hemispherical_totals(mu, 32);
+                            for (int i = 0; i < 5; ++i) {
+                                stratum::HemisphericalTotals<double> a;
+                                worst[i].seconds += median_ms([&] { a = face.hemispherical_totals(mu, nodes[i]); }, 1) / 1e3;
+                                const double e = std::max(std::fabs(a.reflectance - reference.reflectance),
+                                                          std::fabs(a.transmittance - reference.transmittance));
+                                if (e > worst[i].error)
+                                    worst[i] = {e, sigma, face.eta_below() / face.eta_above(), mu, form, worst[i].seconds};
+                            }
+                        }
+                }
+    const char* forms[] = {"height-correlated", "separable", "masking only"};
+    for (int i = 0; i < 5; ++i)
+        std::printf("| %d | %.1e | %g, %g, %.4f, %s | %.1f |\n", nodes[i], worst[i].error, worst[i].sigma, worst[i].eta,
+                    worst[i].mu, forms[worst[i].form], worst[i].seconds);
+}
+
 // ---- Layer solver: the rough faces' integrals (hemispherical_nodes, azimuthal_points) ----------------------------
 void layer_integrals() {
     std::printf("\n## Layer solver: the rough faces' integrals\n\nStam's skin layer, M = 24 (K = 48), all outputs, from "
@@ -1015,6 +1055,7 @@ int main() {
     stratum_accuracy::report_interface_operators();
     layer_ordinates();
     layer_growth();
+    hemispherical_nodes_sweep();
     layer_integrals();
     layer_tabulated_faces();
     layer_tolerance();
