@@ -77,7 +77,7 @@ TEST_CASE("fluxes alone: mode 0 at doubling ordinates, the last solve is the ans
     const int m = plan.options.ordinates;
     CHECK(m == plan.ordinates_tried.back());
     CHECK(plan.options.hemispherical_nodes == 9);  // (integrals no finer than a tolerance of 1e-2 needs, as a plain
-    CHECK(plan.options.azimuthal_points == 6);     //  solve with that tolerance: stratum::integrals_for_tolerance)
+    CHECK(plan.options.azimuthal_points == 12);    //  solve with that tolerance: stratum::integrals_for_tolerance)
     // The estimate is twice the change from the level before (plan_error_estimate), recomputed here from plain solves.
     const Material<double> mat = skin();
     LayerRequest<double> fluxes;

@@ -139,8 +139,8 @@ struct LayerRequest {
     /// section 6); (b) a slab with e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode) is solved
     /// as semi-infinite when neither transmission nor transmittance is requested; (c) rough faces built for the solve
     /// (not prepared ones) take their integrals no finer than the tolerance needs: LayerOptions::hemispherical_nodes
-    /// and ::azimuthal_points capped at 9 and 6 from 1e-2, 10 and 8 from 1e-3, 12 and 12 from 1e-4, 16 points from
-    /// 1e-6 (integrals_for_tolerance: their errors stay 35 times or more inside the tolerance).
+    /// and ::azimuthal_points capped at 9 and 12 from 1e-2, 12 and 12 from 1e-3 (integrals_for_tolerance: their
+    /// errors stay 35 times or more inside the tolerance).
     Real tolerance = 0;
     /// Tabulate, at the solve, the rough faces' couplings between every outside cosine and the ordinates (the
     /// azimuthal integrals of their BTDF that brdf, btdf, reflectance and transmittance compute at an incidence or exit
@@ -161,24 +161,23 @@ struct LayerRequest {
     bool tabulate_faces = false;
 };
 
-/// `options` with the rough faces' integrals no finer than a tolerance needs: LayerOptions::hemispherical_nodes and
-/// ::azimuthal_points, each capped so that its worst error stays 35 times or more inside the tolerance. A solve
-/// with LayerRequest::tolerance builds its rough faces so (and the planner its levels); faces prepared with these
-/// options give that solve's result bit for bit (PreparedBoundary), faces prepared with `options` the same within
-/// the integrals' error. Measured: the hemispherical totals' worst absolute difference from 32 nodes over sigma
-/// 0.003 to 20, n 1 | 1.001 to 1 | 4 either way up, both sides, every shadowing form, at the ordinates of 8, 24 and
-/// 48-point rules: 1.4e-4 / 2.8e-5 / 2.9e-6 at 9 / 10 / 12 nodes (16: 2.8e-7, at sigma 20; ~1e-11 at sigma 0.1 to
-/// 0.3; docs/accuracy.md, "the hemispherical integrals' Gauss nodes over a sweep", repeats it at 24 ordinates); the
-/// azimuthal rule's worst entry relative to its column's peak (sigma 0.02 to 1): 7.3e-5 / 5.9e-6 / 4.7e-7 / 1.3e-8
-/// at 6 / 8 / 12 / 16 points (docs/accuracy.md, "azimuthal rule"). The options unchanged without a tolerance.
+/// `options` with the rough faces' integrals no finer than a tolerance needs: LayerOptions::hemispherical_nodes
+/// capped at 9 from 1e-2 and 12 from 1e-3, ::azimuthal_points at 12 from 1e-3, so that their worst errors stay 35
+/// times or more inside the tolerance (none capped below 1e-3). A solve with LayerRequest::tolerance builds its
+/// rough faces so (and the planner its levels); faces prepared with these options give that solve's result bit for
+/// bit (PreparedBoundary), faces prepared with `options` the same within the integrals' error. Measured: the
+/// hemispherical totals' worst absolute difference from 32 nodes over sigma 0.003 to 20, n 1 | 1.001 to 1 | 4
+/// either way up, both sides, every shadowing form, at the ordinates of 8, 24 and 48-point rules: 1.6e-4 / 4.7e-5 /
+/// 7.3e-6 at 9 / 10 / 12 nodes (16: 2.8e-7, at sigma 20; ~1e-11 at sigma 0.1 to 0.3; docs/accuracy.md, "the
+/// hemispherical integrals' Gauss nodes over a sweep", repeats it at 24 ordinates); the azimuthal rule's worst entry
+/// relative to its column's peak at 12 points 2.5e-6 (sigma 0.005 to 5; 4.7e-7 within 0.02 to 1, docs/accuracy.md,
+/// "azimuthal rule"). The same rule gives the faces' couplings at true angles (brdf, btdf, reflectance(mu)).
+/// The options unchanged without a tolerance.
 template <class Real>
 LayerOptions integrals_for_tolerance(LayerOptions options, Real tolerance) noexcept {
-    if (!(tolerance > 0)) return options;
-    const double t = static_cast<double>(tolerance);
-    const int nodes = t >= 1e-2 ? 9 : t >= 1e-3 ? 10 : t >= 1e-4 ? 12 : options.hemispherical_nodes;
-    const int points = t >= 1e-2 ? 6 : t >= 1e-3 ? 8 : t >= 1e-4 ? 12 : t >= 1e-6 ? 16 : options.azimuthal_points;
-    options.hemispherical_nodes = std::min(options.hemispherical_nodes, nodes);
-    options.azimuthal_points = std::min(options.azimuthal_points, points);
+    if (!(tolerance >= Real(1e-3))) return options;  // (compared in Real: a float 1e-3f is 1e-3 here)
+    options.hemispherical_nodes = std::min(options.hemispherical_nodes, tolerance >= Real(1e-2) ? 9 : 12);
+    options.azimuthal_points = std::min(options.azimuthal_points, 12);
     return options;
 }
 
@@ -2697,16 +2696,17 @@ void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Re
     const Real* r12 = top_ops_->R12().mode(k);
     for (std::size_t i = 0; i < m * m; ++i) rd.data[i] += r12[i];
     w.reflection_down = std::move(rd.data);
-    // T_d = T_L,d A T_12 = T_23 X A T_12 = T_23 Q_e T_12 (T_L,d = T_23 X: detail::add_from_above)
-    const Matrix<Real> qe = detail::needs_transmitted(outputs_) ? qe_.back() : multiply(below.x, a);
-    w.transmission_down = multiply(detail::as_matrix(m, below.bottom.transmission_down), multiply(qe, t12)).data;
     if (symmetric_) {  // the layer seen from below is the layer seen from above: 6 of the 10 products saved
+        // T_d = T_L,d A T_12 = T_23 X A T_12 = T_23 Q_e T_12 (T_L,d = T_23 X, not computed: detail::add_from_above)
+        const Matrix<Real> qe = detail::needs_transmitted(outputs_) ? qe_.back() : multiply(below.x, a);
+        w.transmission_down = multiply(detail::as_matrix(m, below.bottom.transmission_down), multiply(qe, t12)).data;
         w.reflection_up = w.reflection_down;
         w.transmission_up = w.transmission_down;
         whole_.push_back(std::move(w));
         return;
     }
     const Matrix<Real> lower_td = detail::as_matrix(m, below.lower.transmission_down);
+    w.transmission_down = multiply(lower_td, multiply(a, t12)).data;
     Matrix<Real> y = detail::as_matrix(m, below.lower.transmission_up);
     const Matrix<Real> bounce = multiply(qb, multiply(r21, y));
     for (std::size_t i = 0; i < m * m; ++i) y.data[i] += bounce.data[i];
