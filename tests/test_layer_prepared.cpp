@@ -197,8 +197,10 @@ TEST_CASE("with a tolerance, plain rough faces take their integrals no finer tha
     // rough-faced layers (sigma 0.005 to 5, light entering from the rarer or the denser side, every shadowing form,
     // M 6 to 24) and a review's worst case: a solve with a tolerance against one of the same modes with the full
     // integrals (no tolerance, max_modes = its modes); the difference is the integrals' alone (with the faces'
-    // couplings at true angles, which take the same rule). Relative to the largest value of each kind of output
-    // (subsurface BRDF and BTDF at 16 direction pairs down to mu = 0.1, the fluxes at 3 incidences).
+    // couplings at true angles, which take the same rule). Relative to the largest value of each kind of output:
+    // the angular ones together as the tolerance's mode cut measures them (subsurface BRDF and BTDF at 16 direction
+    // pairs down to mu = 0.1), the fluxes at 3 incidences. (A subsurface BRDF far below the BTDF may change by more
+    // of its own peak: docs/physics.md section 6.)
     std::mt19937_64 rng(20261126);
     std::uniform_real_distribution<double> u(0, 1);
     const double tolerances[3] = {1e-2, 1e-3, 1e-4};
@@ -252,6 +254,14 @@ TEST_CASE("with a tolerance, plain rough faces take their integrals no finer tha
     }
     CHECK(worst[0] > 1e-8);   // (the integrals are coarser: with the full ones the difference is 1e-16)
     CHECK(worst[2] < 1e-12);  // (below 1e-3 nothing is capped)
+    // The brackets in every floating type: its own 1e-2 and 1e-3 (a double threshold is above 1e-2L and 1e-3L).
+    const LayerOptions o;
+    CHECK(stratum::integrals_for_tolerance(o, 1e-2f).hemispherical_nodes == 9);
+    CHECK(stratum::integrals_for_tolerance(o, 1e-2L).hemispherical_nodes == 9);
+    CHECK(stratum::integrals_for_tolerance(o, 1e-3L).hemispherical_nodes == 12);
+    CHECK(stratum::integrals_for_tolerance(o, 1e-3L).azimuthal_points == 12);
+    CHECK(stratum::integrals_for_tolerance(o, 9.99e-4L).hemispherical_nodes == 16);
+    CHECK(stratum::integrals_for_tolerance(o, 0.0).azimuthal_points == 24);
 }
 
 TEST_CASE("prepared boundaries keep their operators for every slab and are not rebuilt") {

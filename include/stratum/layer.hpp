@@ -163,7 +163,9 @@ struct LayerRequest {
 
 /// `options` with the rough faces' integrals no finer than a tolerance needs: LayerOptions::hemispherical_nodes
 /// capped at 9 from 1e-2 and 12 from 1e-3, ::azimuthal_points at 12 from 1e-3, so that their worst errors stay 35
-/// times or more inside the tolerance (none capped below 1e-3). A solve with LayerRequest::tolerance builds its
+/// times or more inside the tolerance, relative to the largest of the outputs as the tolerance's mode cut measures
+/// them (an output far below the others, such as a subsurface BRDF 50 times below the BTDF, may change by up to
+/// 0.3 t of its own peak: docs/physics.md section 6); none capped below 1e-3. A solve with LayerRequest::tolerance builds its
 /// rough faces so (and the planner its levels); faces prepared with these options give that solve's result bit for
 /// bit (PreparedBoundary), faces prepared with `options` the same within the integrals' error. Measured: the
 /// hemispherical totals' worst absolute difference from 32 nodes over sigma 0.003 to 20, n 1 | 1.001 to 1 | 4
@@ -175,8 +177,9 @@ struct LayerRequest {
 /// The options unchanged without a tolerance.
 template <class Real>
 LayerOptions integrals_for_tolerance(LayerOptions options, Real tolerance) noexcept {
-    if (!(tolerance >= Real(1e-3))) return options;  // (compared in Real: a float 1e-3f is 1e-3 here)
-    options.hemispherical_nodes = std::min(options.hemispherical_nodes, tolerance >= Real(1e-2) ? 9 : 12);
+    // (compared in Real, the thresholds rounded from long double: a float 1e-3f or a long double 1e-3L is 1e-3 here)
+    if (!(tolerance >= static_cast<Real>(1e-3L))) return options;
+    options.hemispherical_nodes = std::min(options.hemispherical_nodes, tolerance >= static_cast<Real>(1e-2L) ? 9 : 12);
     options.azimuthal_points = std::min(options.azimuthal_points, 12);
     return options;
 }
