@@ -459,7 +459,8 @@ public:
     /// fewer modes use a coarser azimuthal rule: their modes differ from those of a build for more by up to 2e-10 of
     /// an entry from 12 modes on, 2e-8 at 8, measured against 48 over sigma 0.05 to 3 at n 1 | 1.05 and 1 | 1.4,
     /// M = 24, at 24 points per panel; with the 12 points a tolerance takes, 8.3e-13 of a layer's largest output,
-    /// tests/test_layer_prepared.cpp.) Throws std::invalid_argument for modes < 1, other ordinates, or a specular interface's operators.
+    /// tests/test_layer_prepared.cpp.) Throws std::invalid_argument for modes < 1, other ordinates, or a specular
+    /// interface's operators.
     InterfaceOperators with_modes(const Quadrature<Real>& ordinates, int modes) const {
         detail::require_count("modes", modes, 1);
         if (specular_ || !rough_) detail::fail_invalid_argument("stratum: InterfaceOperators::with_modes: not a rough interface");
