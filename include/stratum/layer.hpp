@@ -107,9 +107,11 @@ struct LayerOptions {
     /// function: solve_stack falls back to it).
     bool critical_split = true;
     /// Between specular faces (where the beam is a source: docs/physics.md section 6), brdf and btdf add the exact
-    /// single scattering of the untruncated phase function in place of the truncated one (Nakajima and Tanaka 1988's
-    /// TMS correction, as DISORT's intensities): near the beam's directions, where delta-M's truncated phase function
-    /// cannot follow a forward peak, the radiance is then right at 16 ordinates (tests/test_layer_intensity.cpp).
+    /// single scattering of the untruncated phase function in place of the truncated one, and the truncated peak's
+    /// second scattering around the transmitted beam (Nakajima and Tanaka 1988's TMS and IMS corrections, as
+    /// DISORT's intensities; the IMS at every angle, not only within DISORT's 10 degrees): near the beam's
+    /// directions, where delta-M's truncated phase function cannot follow a forward peak, the radiance is then right
+    /// at 16 ordinates (tests/test_layer_intensity.cpp). The IMS is an approximation and not reciprocal.
     /// The forward peak's single scattering, which reflectance() and transmittance() count in the delta-M beam
     /// (forward_peak_*), is then in brdf and btdf as well: their integrals exceed the fluxes by it. Off: brdf and
     /// btdf integrate to the fluxes (and fourier_coefficients, which never include it, give them).
@@ -1877,8 +1879,11 @@ private:
             if (!(y > 0) || !(f.x[j] > 0)) continue;
             Real r = 0, t = 0;
             beam_->slabs[j].single_scattering_correction(f.x[j], y, cos_dphi, &r, &t);
-            up[j] = f.flux_down[j] * r + f.flux_up[j] * t;
-            down[j] = f.flux_down[j] * t + f.flux_up[j] * r;
+            // (IMS: the beam's aureole, in its own direction of travel)
+            const Real sines = std::sqrt((1 - f.x[j]) * (1 + f.x[j]) * (1 - y) * (1 + y)) * cos_dphi;
+            const Real s = beam_->slabs[j].secondary_scattering_correction(f.x[j], y, f.x[j] * y + sines);
+            up[j] = f.flux_down[j] * r + f.flux_up[j] * (t - s);
+            down[j] = f.flux_down[j] * (t - s) + f.flux_up[j] * r;
         }
         return leave(transmitted, up.data(), down.data(), ws);
     }
