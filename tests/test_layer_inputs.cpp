@@ -505,6 +505,35 @@ TEST_CASE("boundaries: roughness from 1e-300 to 1e10, index ratios 1 and 1 +- 1e
     for (double sigma : {-1.0, -1e-300, inf, not_a_number}) CHECK_REJECTS(RoughDielectric<double>(sigma, 1.0, 1.4), "sigma");
 }
 
+TEST_CASE("a nearly matched face's critical cosine too close to 0 for the ordinates is not a cut (found by review)") {
+    // A bottom face 1.4 | 1.4 (1 - 1e-12) has its critical cosine at 1.4e-6: as a cut it took 4 of 16 ordinates
+    // (the lower panels' share) for a cone that holds no light, and a semi-infinite layer's BRDF, which the bottom
+    // cannot touch, came out 0.5245 instead of 0.2739 (wi mu 0.3, M = 16; the BTDF at tau 1 integrated to 15% more
+    // than the transmittance). Now the layer equals the one with an index-matched bottom to rounding, at any
+    // thickness, and so does the same face as the top.
+    const double e = 1 - 1e-12;
+    const Vec3<double> wi = {std::sqrt(1 - 0.09), 0, 0.3}, wo = {-0.3, 0.1, std::sqrt(1 - 0.1)};
+    for (const double tau : {inf, 1.0})
+        for (const int m : {8, 16, 24}) {
+            const auto near = solve_layer(Slab<double>(1.0, 0.9, tau), SmoothDielectric<double>(1.0, 1.4),
+                                          SmoothDielectric<double>(1.4, 1.4 * e), with_ordinates(m));
+            const auto matched = solve_layer(Slab<double>(1.0, 0.9, tau), SmoothDielectric<double>(1.0, 1.4),
+                                             Boundary<double>::index_matched(1.4), with_ordinates(m));
+            INFO("tau " << tau << ", M = " << m);
+            CHECK(near.quadrature().nodes == matched.quadrature().nodes);
+            CHECK(near.subsurface_brdf(wi, wo) == doctest::Approx(matched.subsurface_brdf(wi, wo)).epsilon(1e-9));
+            if (tau == 1.0) {
+                const Vec3<double> down{wo.x, wo.y, -wo.z};
+                CHECK(near.btdf(wi, down) == doctest::Approx(matched.btdf(wi, down)).epsilon(1e-9));
+            }
+        }
+    const auto top = solve_layer(Slab<double>(0.9, 0.5, 1.0), SmoothDielectric<double>(1.4 / e, 1.4),
+                                 SmoothDielectric<double>(1.4, 1.0), with_ordinates(16));
+    const auto top_matched = solve_layer(Slab<double>(0.9, 0.5, 1.0), Boundary<double>::index_matched(1.4),
+                                         SmoothDielectric<double>(1.4, 1.0), with_ordinates(16));
+    CHECK(top.quadrature().nodes == top_matched.quadrature().nodes);
+}
+
 TEST_CASE("options: ordinates 1, 2, 3 and one mode are accepted; 0 and negative counts rejected") {
     const Slab<double> slab(0.9, 0.5, 1.0);
     for (const Faces& faces : face_kinds())
