@@ -173,6 +173,29 @@ TEST_CASE("phase moments are validated where the slab is built") {
     CHECK(Slab<double>(0.9, 0.5, 1.0).henyey_greenstein());
 }
 
+TEST_CASE("delta-M is left out where it would leave no phase function: chi_2M = 1 (found by review)") {
+    // {1, 0.5, 1}: three quarters forward and a quarter backward delta, realizable; at M = 1 delta-M's f = chi_2 = 1
+    // divided by 1 - f = 0 and the slab was refused ("chi[1] = -inf"; at albedo 1 "one_minus_albedo = -nan"); the
+    // same for {1, 0.5, -1, 0.5, 1} at M = 2. Truncated plainly instead: finite, and at albedo 1 between
+    // index-matched faces every bit of light is reflected or transmitted (a delta-M whose scaled moments leave [-1, 1]
+    // is also left out).
+    const std::vector<std::vector<double>> sets = {{1.0, 0.5, 1.0}, {1.0, 0.5, -1.0, 0.5, 1.0}};
+    for (int m = 1; m <= 2; ++m)
+        for (const double albedo : {0.8, 1.0}) {
+            const auto layer = solve_layer(Slab<double>::with_phase_moments(albedo, sets[static_cast<std::size_t>(m - 1)], 1.0),
+                                           Boundary<double>::index_matched(), Boundary<double>::index_matched(), ordinates(m));
+            for (const double mu : {1.0, 0.5, 0.1}) {
+                const double r = layer.reflectance(mu).total(), t = layer.transmittance(mu);
+                INFO("M = " << m << ", albedo " << albedo << ", mu " << mu << ": R " << r << ", T " << t);
+                CHECK(std::isfinite(r));
+                CHECK(r >= 0);
+                CHECK(t >= 0);
+                if (albedo == 1.0) CHECK(r + t == doctest::Approx(1.0).epsilon(1e-12));
+                else CHECK(r + t < 1);
+            }
+        }
+}
+
 // 2 E_3(tau) = 2 int_0^1 mu e^{-tau/mu} dmu: the diffuse transmittance of a purely absorbing slab (midpoint rule,
 // 200000 points: the integrand is smooth, error ~1e-11).
 double two_e3(double tau) {

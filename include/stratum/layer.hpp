@@ -649,9 +649,9 @@ void make_discretely_conservative(PhaseFourierMatrices<Real>& p, const Quadratur
 }
 
 /// prepare_slab for a phase function given by its Legendre moments (Slab::with_phase_moments): the first
-/// L = 2M, delta-M scaled with f = chi_L when the medium scatters forwards (g > 0) and chi_L is given and positive
-/// (a forward peak beyond what the ordinates resolve), plainly truncated otherwise (moments beyond those given
-/// are 0: nothing to truncate).
+/// L = 2M, delta-M scaled with f = chi_L when the medium scatters forwards (g > 0) and chi_L is given, positive and
+/// below 1, with every scaled moment in [-1, 1] (a forward peak beyond what the ordinates resolve), plainly
+/// truncated otherwise (moments beyond those given are 0: nothing to truncate).
 template <class Real>
 SlabModes<Real> prepare_slab_from_moments(const Slab<Real>& s, const Quadrature<Real>& q, int modes, bool delta_m,
                                           Real tau) {
@@ -659,8 +659,13 @@ SlabModes<Real> prepare_slab_from_moments(const Slab<Real>& s, const Quadrature<
     const std::vector<Real>& given = s.phase_moments();
     std::vector<Real> chi(count, Real(0));
     for (std::size_t l = 0; l < count && l < given.size(); ++l) chi[l] = given[l];
-    // As for Henyey-Greenstein (prepare_slab): delta-M only for a forward-scattering medium (g = chi_1 > 0).
-    const Real f = delta_m && s.g() > Real(0) && given.size() > count ? given[count] : Real(0);
+    // As for Henyey-Greenstein (prepare_slab): delta-M only for a forward-scattering medium (g = chi_1 > 0), and
+    // only where it leaves a phase function: f < 1 and every scaled moment (chi_l - f) / (1 - f) in [-1, 1]. (Moments
+    // {1, 0.5, 1}, a forward and a backward delta, have f = chi_2 = 1 at M = 1: the scaling divided by 0, and the
+    // slab was refused with "chi[1] = -inf"; found by review.)
+    Real f = delta_m && s.g() > Real(0) && given.size() > count ? given[count] : Real(0);
+    for (std::size_t l = 1; l < count && f > 0; ++l)
+        if (!(f < 1) || !(std::fabs(chi[l] - f) <= Real(1) - f)) f = 0;
     if (!(f > 0)) {
         SlabModes<Real> out{Slab<Real>::from_one_minus_albedo(s.one_minus_albedo(), s.g(), tau),
                             phase_fourier_matrices(chi, q.nodes, modes), chi};
