@@ -256,6 +256,46 @@ TEST_CASE("a white floor under a conservative slab reflects everything; a floor 
     CHECK(std::fabs(over_floor.reflectance(0.6).total() - alone.reflectance(0.6).total()) < 1e-15);
 }
 
+template <class Real>
+double worst_from_semi_infinite(const Boundary<Real>& top, int m, Real g, double tau_from, double tau_to) {
+    LayerOptions o;
+    o.ordinates = m;
+    stratum::LayerRequest<Real> request;
+    request.outputs = stratum::LayerOutput::reflectance;
+    const Boundary<Real> white = Boundary<Real>::lambertian(Real(1), Real(1.4));
+    const auto infinite = solve_layer(Slab<Real>(Real(1), g, std::numeric_limits<Real>::infinity()), top, white, o, request);
+    double worst = 0;
+    for (double tau = tau_from; tau <= tau_to; tau *= 1.7782794100389228) {  // (10^(1/4))
+        const auto layer = solve_layer(Slab<Real>(Real(1), g, static_cast<Real>(tau)), top, white, o, request);
+        for (const Real mu : {Real(1), Real(0.5), Real(0.1)}) {
+            const double r = static_cast<double>(layer.reflectance(mu).total());
+            const double e = std::fabs(r - static_cast<double>(infinite.reflectance(mu).total()));
+            worst = std::isfinite(r) ? std::fmax(worst, e) : HUGE_VAL;
+        }
+    }
+    return worst;
+}
+
+TEST_CASE("a white floor under a lossless slab too thick for light to reach it: the semi-infinite layer's R (found by review)") {
+    // The floor's coupling is singular to rounding when the slab lets through less than about eps: a non-absorbing
+    // slab of tau 3e16 over a white floor gave R = 7e259 (double), 8e17 at tau 1e8 (float, g 0.8), 31 under a rough
+    // top at tau 1e20. Beyond T < 4 eps (the diffusion bound) the floor is solved as black; R then meets the
+    // semi-infinite layer's continuously across that limit: measured worst 1.9e-15 (double, tau 1e10 to 1e21) and
+    // 8.3e-7 (float, 1e3 to 1e12), smooth and rough tops, 3 and 12 ordinates.
+    for (const int m : {3, 12}) {
+        CHECK(worst_from_semi_infinite<double>(SmoothDielectric<double>(1, 1.4), m, 0.0, 1e10, 1e21) < 1e-14);
+        CHECK(worst_from_semi_infinite<double>(RoughDielectric<double>(0.3, 1, 1.4), m, 0.5, 1e10, 1e21) < 1e-14);
+        CHECK(worst_from_semi_infinite<float>(SmoothDielectric<float>(1, 1.4f), m, 0.8f, 1e3, 1e12) < 4e-6);
+        CHECK(worst_from_semi_infinite<float>(RoughDielectric<float>(0.3f, 1, 1.4f), m, 0.5f, 1e3, 1e12) < 4e-6);
+    }
+    // Beyond the limit bottom() says what was solved: a black floor of the same index.
+    const auto thick = solve_layer(Slab<double>(1.0, 0.0, 1e17), SmoothDielectric<double>(1, 1.4),
+                                   Boundary<double>::lambertian(1.0, 1.4), ordinates(4));
+    CHECK(thick.bottom().lambertian());
+    CHECK(thick.bottom().floor_albedo() == 0.0);
+    CHECK(thick.bottom().eta_above() == 1.4);
+}
+
 TEST_CASE("a Lambertian floor is only a bottom boundary, and its albedo is validated") {
     const Boundary<double> floor = Boundary<double>::lambertian(0.5);
     const Boundary<double> open = Boundary<double>::index_matched(1.0);
