@@ -79,7 +79,8 @@ constexpr bool needs_transmitted(LayerOutput set) noexcept {
 
 /// Discretization knobs.
 struct LayerOptions {
-    int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), >= 1
+    int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), >= 1 (>= 2 under a
+                          ///< smooth face whose critical cosine exceeds 0.5: detail::require_escape)
     int modes = 0;        ///< K azimuthal modes; 0 = 2M (as many as 2M Legendre moments support)
     bool delta_m = true;  ///< delta-M scaling (Wiscombe 1977) with 2M moments, for g > 0 (forward peaks)
     /// Rough boundaries: rescale each operator column to the exact hemispherical totals (interface_operators.hpp).
@@ -2241,6 +2242,26 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     return q;
 }
 
+/// One ordinate (mu = 0.5) inside the cone that a smooth top or bottom traps by total internal reflection (critical
+/// cosine above 0.5: index ratio above 1.155) holds all the scattered light, and none leaves through that face: under
+/// a 1 | 1.4 top a lossless slab reflected nothing (R + T 0.072 at tau = inf, a fluence of 2e16 inside at tau 1;
+/// found by a review sweep). Refused (std::invalid_argument), as no placement of one ordinate represents both the
+/// trapped and the escaping light; two split at the critical cosine do.
+template <class Real>
+void require_escape(const Boundary<Real>& top, const Boundary<Real>& bottom, const Quadrature<Real>& q) {
+    if (q.size() != 1) return;
+    const auto check = [&](const Boundary<Real>& face, Real r, const char* name) {
+        if (face.rough() || face.lambertian() || !(r < 1)) return;
+        const Real cut = std::sqrt((1 - r) * (1 + r));
+        if (q.nodes[0] < cut)
+            fail_invalid_argument("stratum: options.ordinates = 1 puts its one ordinate (mu " + std::to_string(q.nodes[0]) +
+                                  ") in the cone that the " + name + " face traps (critical cosine " +
+                                  std::to_string(cut) + "): no scattered light could leave through it; use 2 or more");
+    };
+    check(top, top.eta_above() / top.eta_below(), "top");
+    check(bottom, bottom.eta_below() / bottom.eta_above(), "bottom");
+}
+
 /// Whether some slab lets through less than 4 eps of any light falling on it, by the diffusion bound for a lossless
 /// slab, T <= 1 / (1 + (3/4) (1 - g) tau) (absorption and delta-M, which keeps (1 - g) tau or raises it, only
 /// lower T).
@@ -2331,6 +2352,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         if (request.tabulate_faces) s.tabulate_faces();  // (the top's reflectance alone: its entry table)
         return s;
     }
+    detail::require_escape(top, bottom, s.q_);
 
     // 2. A rough face built here for a request with a tolerance gets the modes it is expected to need, and more if
     // the solve reaches them (extend_faces); prepared faces hold all.
