@@ -547,6 +547,13 @@ TEST_CASE("one ordinate inside a smooth face's trapped cone is refused (found by
     CHECK_REJECTS(solve_layer(Slab<double>(0.9, 0.5, 1.0), Boundary<double>::index_matched(1.4),
                               SmoothDielectric<double>(1.4, 1.0), with_ordinates(1)),
                   "bottom face");
+    // A joint traps the denser slab's light as well: 1 | 1.1 | 1.4 | 1.1 | 1 (the middle slab's joints at critical
+    // cosine 0.62) lost 87% of the light, R + T = 0.135 (found by review).
+    const std::vector<Slab<double>> three = {Slab<double>(1.0, 0.0, 0.1), Slab<double>(1.0, 0.0, 1.0), Slab<double>(1.0, 0.0, 0.1)};
+    const std::vector<Boundary<double>> joints = {SmoothDielectric<double>(1.1, 1.4), SmoothDielectric<double>(1.4, 1.1)};
+    CHECK_REJECTS(stratum::solve_stack(SmoothDielectric<double>(1.0, 1.1), three, joints, SmoothDielectric<double>(1.1, 1.0),
+                                       with_ordinates(1)),
+                  "interior[0] face");
     const auto two = solve_layer(lossless, SmoothDielectric<double>(1.0, 1.4), Boundary<double>::index_matched(1.4),
                                  with_ordinates(2));
     CHECK(two.reflectance(0.5).total() == doctest::Approx(1.0).epsilon(1e-12));
