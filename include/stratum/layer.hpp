@@ -2257,11 +2257,13 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     return q;
 }
 
-/// One ordinate (mu = 0.5) inside the cone that a smooth top or bottom traps by total internal reflection (critical
-/// cosine above 0.5: index ratio above 1.155) holds all the scattered light, and none leaves through that face: under
-/// a 1 | 1.4 top a lossless slab reflected nothing (R + T 0.072 at tau = inf, a fluence of 2e16 inside at tau 1;
-/// found by a review sweep). Refused (std::invalid_argument), as no placement of one ordinate represents both the
-/// trapped and the escaping light; two split at the critical cosine do.
+/// One ordinate (mu = 0.5) inside the cone that a smooth top, bottom or joint traps by total internal reflection
+/// (critical cosine above 0.5: index ratio above 1.155) holds all the scattered light, and none crosses that face:
+/// under a 1 | 1.4 top a lossless slab reflected nothing (R + T 0.072 at tau = inf, a fluence of 2e16 inside at tau 1),
+/// a slab between two such joints kept its light (R + T 0.135; found by review sweeps). Refused (std::invalid_argument),
+/// as no placement of one ordinate represents both the trapped and the escaping light; two split at the critical
+/// cosine do. (Also where the light could still leave the other way, e.g. a joint above an open bottom, whose
+/// reflection is then wrong though energy is kept.)
 template <class Real>
 void require_escape(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
                     const Quadrature<Real>& q) {
@@ -2272,7 +2274,7 @@ void require_escape(const Boundary<Real>& top, const std::vector<Boundary<Real>>
         if (q.nodes[0] < cut)
             fail_invalid_argument("stratum: options.ordinates = 1 puts its one ordinate (mu " + std::to_string(q.nodes[0]) +
                                   ") in the cone that the " + name + " face traps (critical cosine " +
-                                  std::to_string(cut) + "): no scattered light could leave through it; use 2 or more");
+                                  std::to_string(cut) + "): no scattered light could cross that face; use 2 or more");
     };
     check(top, top.eta_above() / top.eta_below(), "top");
     check(bottom, bottom.eta_below() / bottom.eta_above(), "bottom");

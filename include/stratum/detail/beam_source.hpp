@@ -273,6 +273,8 @@ public:
         return l < exact_moments_.size() ? exact_moments_[l] : Real(0);
     }
     std::size_t moment_count() const noexcept { return phase_.moments().size(); }
+    /// Henyey-Greenstein's g where the exact phase function is one (NaN otherwise).
+    Real hg_asymmetry() const noexcept { return hg_ ? hg_g_ : std::numeric_limits<Real>::quiet_NaN(); }
 
     // p_spike(c) = sum_l (2l + 1) q_l (2 - q_l) P_l(c) (secondary_scattering_correction): q_l = 1 below the L moments
     // the solve keeps. For Henyey-Greenstein q_l = g^{l - L} beyond, and the tails sum in closed form from
@@ -530,27 +532,71 @@ Real ims_xi(Real mu1, Real mu2, Real tau) noexcept {
     return (tau * half) * (tau * half) * h / (mu1 * mu2);
 }
 
-// p_spike of a column of slabs with different peaks: the moments q_l = sum_j Omega_j tau_j chi_{l,j} / sum_j f_j
-// Omega_j tau_j beyond the L the solve keeps (1 below), summed until they vanish (or 20000 terms).
+// p_spike of a column of slabs with different peaks: q_l = sum_j Omega_j tau_j chi_{l,j} / sum_j f_j Omega_j tau_j
+// beyond the L moments the solve keeps (1 below), over the slabs that have a truncated peak (f_j > 0; the others
+// have none to spread: counted, a backward Henyey-Greenstein slab's alternating moments cancelled the sum to 0 and
+// ended it early, a 3% spike at one thickness; found by review). Where those are all Henyey-Greenstein the tails sum
+// in closed form, q_l (2 - q_l) = 2 sum_j a_j g_j^l - sum_jk a_j a_k (g_j g_k)^l with a_j = Omega_j tau_j / F:
+//     p_spike = S(1) + 2 sum_j a_j (HG_{g_j} - S(g_j)) - sum_jk a_j a_k (HG_{g_j g_k} - S(g_j g_k))
+// (S as for SlabBeam::spike; q_L = 1, and q_l < 1 beyond); otherwise term by term, until sum_j a_j |chi_{l,j}| is
+// below eps / 1024 (at most 20000 terms).
 template <class Real>
 Real column_spike(const std::vector<SlabBeam<Real>>& slabs, std::size_t first, std::size_t last, Real f_omega_tau,
                   Real c) noexcept {
     c = std::fmin(Real(1), std::fmax(Real(-1), c));
     const std::size_t moments = slabs[first].moment_count();
-    Real p0 = 1, p1 = c, sum = 0;
-    for (std::size_t l = 0; l < moments; ++l) {
-        sum += static_cast<Real>(2 * l + 1) * (l == 0 ? Real(1) : p1);
-        if (l > 0) {
-            const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
-            p0 = p1;
-            p1 = p2;
-        }
+    const auto hg = [c](Real h) {
+        const Real omh = 1 - h, oph = 1 + h, denom = omh * omh + 2 * h * (1 - c);
+        return omh * oph / (denom * std::sqrt(denom));
+    };
+    // S(h) for the h needed, with S(1), in one Legendre recurrence
+    std::vector<Real> a, g;
+    bool closed = true;
+    for (std::size_t j = first; j <= last; ++j) {
+        const typename SlabBeam<Real>::Peak p = slabs[j].peak();
+        if (!(p.f_omega_tau > 0)) continue;
+        a.push_back(p.omega_tau / f_omega_tau);
+        g.push_back(slabs[j].hg_asymmetry());
+        closed = closed && std::isfinite(g.back());
     }
-    for (std::size_t l = moments; l < 20000; ++l) {  // (p1 = P_l here)
-        Real q = 0;
-        for (std::size_t j = first; j <= last; ++j) q += slabs[j].peak().omega_tau * slabs[j].peak_moment(l);
-        q = std::fmin(Real(1), q / f_omega_tau);
-        if (!(std::fabs(q) > std::numeric_limits<Real>::epsilon() / 1024)) break;
+    const auto partial = [&](Real h) {  // S(h) = sum_{l < L} (2l + 1) h^l P_l(c)
+        Real p0 = 1, p1 = c, sum = 0, hl = 1;
+        for (std::size_t l = 0; l < moments; ++l) {
+            sum += static_cast<Real>(2 * l + 1) * hl * (l == 0 ? Real(1) : p1);
+            hl *= h;
+            if (l > 0) {
+                const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
+                p0 = p1;
+                p1 = p2;
+            }
+        }
+        return sum;
+    };
+    Real sum = partial(Real(1));
+    if (closed) {
+        for (std::size_t j = 0; j < a.size(); ++j) {
+            sum += 2 * a[j] * (hg(g[j]) - partial(g[j]));
+            for (std::size_t k = 0; k < a.size(); ++k) sum -= a[j] * a[k] * (hg(g[j] * g[k]) - partial(g[j] * g[k]));
+        }
+        return sum;
+    }
+    Real p0 = 1, p1 = c;  // P_l at l = L, by the recurrence
+    for (std::size_t l = 1; l < moments; ++l) {
+        const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
+        p0 = p1;
+        p1 = p2;
+    }
+    for (std::size_t l = moments; l < 20000; ++l) {
+        Real q = 0, size = 0;
+        std::size_t i = 0;
+        for (std::size_t j = first; j <= last; ++j) {
+            if (!(slabs[j].peak().f_omega_tau > 0)) continue;
+            const Real chi = slabs[j].peak_moment(l);
+            q += a[i] * chi;
+            size += a[i++] * std::fabs(chi);
+        }
+        if (!(size > std::numeric_limits<Real>::epsilon() / 1024)) break;
+        q = std::fmin(Real(1), q);
         sum += static_cast<Real>(2 * l + 1) * q * (2 - q) * p1;
         const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
         p0 = p1;
