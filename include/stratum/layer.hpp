@@ -2190,8 +2190,8 @@ Quadrature<Real> layer_quadrature(const Boundary<Real>& top, const std::vector<B
     // a nearly matched bottom face (1.4 | 1.4 (1 - 1e-12)) took 4 of 16 ordinates there, and a semi-infinite
     // layer's BRDF, which that face cannot touch, came out 0.52 instead of 0.27 (found by review; test_layer_inputs).
     // Where a cut crosses the limit the rule changes, and the layer jumps by the size of its discretization error
-    // (a bottom 1.4 | 1.4 r at r = 0.99916, 8 ordinates: the BRDF by 29%, both sides 15-20% from 64 ordinates'; the
-    // next review).
+    // (a bottom 1.4 | 1.4 r at r = 0.99916, 8 ordinates: the BRDF by 29%, both sides 15-20% from the value at 64
+    // ordinates; found by the next review).
     // (Dropping a cut within that distance of another cut as well cost 4e-3 against the photon Monte Carlo at 16
     // ordinates for 1 | 1.4 | 1.2 | 1.)
     const Quadrature<Real> plain = shared_gauss_legendre_half<Real>(m);
