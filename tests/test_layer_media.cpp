@@ -288,6 +288,16 @@ TEST_CASE("a white floor under a lossless slab too thick for light to reach it: 
         CHECK(worst_from_semi_infinite<float>(SmoothDielectric<float>(1, 1.4f), m, 0.8f, 1e3, 1e12) < 4e-6);
         CHECK(worst_from_semi_infinite<float>(RoughDielectric<float>(0.3f, 1, 1.4f), m, 0.5f, 1e3, 1e12) < 4e-6);
     }
+    // Prepared faces (whose floor operators are the bright floor's) give the plain solve's R.
+    LayerOptions o8 = ordinates(8);
+    const stratum::PreparedBoundary<double> rough_top(Boundary<double>(RoughDielectric<double>(0.3, 1, 1.4)), o8);
+    const stratum::PreparedBoundary<double> white_floor(Boundary<double>::lambertian(1.0, 1.4), o8);
+    for (const double tau : {1e14, 1e20}) {
+        const auto prepared = solve_layer(Slab<double>(1.0, 0.5, tau), rough_top, white_floor);
+        const auto plain = solve_layer(Slab<double>(1.0, 0.5, tau), RoughDielectric<double>(0.3, 1, 1.4),
+                                       Boundary<double>::lambertian(1.0, 1.4), o8);
+        CHECK(prepared.reflectance(0.5).total() == doctest::Approx(plain.reflectance(0.5).total()).epsilon(1e-13));
+    }
     // Beyond the limit bottom() says what was solved: a black floor of the same index.
     const auto thick = solve_layer(Slab<double>(1.0, 0.0, 1e17), SmoothDielectric<double>(1, 1.4),
                                    Boundary<double>::lambertian(1.0, 1.4), ordinates(4));

@@ -2351,9 +2351,15 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     // non-absorbing slab of tau 3e16 over a white floor gave R = 7e259 (float: 8e17 at tau 1e8, g 0.8; found by a
     // review sweep). Such a floor is solved as a black one (bottom() then says so), unless fields at depth are asked
     // for, which the floor's trapped light reaches (README, known limitations).
-    if (bottom.lambertian() && bottom.floor_albedo() > 0 && request.depths.empty() && detail::opaque(slabs))
+    if (bottom.lambertian() && bottom.floor_albedo() > 0 && request.depths.empty() && detail::opaque(slabs)) {
+        detail::PreparedOperators<Real> without_floor = prepared;  // (a prepared floor's operators are the bright one's)
+        without_floor.bottom = nullptr;
+        without_floor.bottom_entry = nullptr;
+        without_floor.bottom_exit.clear();
+        without_floor.bottom_couplings = nullptr;
         return solve(top, slabs, interior, Boundary<Real>::lambertian(Real(0), bottom.eta_above()), options, request,
-                     prepared);
+                     without_floor);
+    }
     LayeredSurface s(top, bottom);
     s.top_entry_ = prepared.top_entry ? prepared.top_entry
                                       : std::make_shared<const detail::EntryTransmittance<Real>>(top, Incidence::from_above);
