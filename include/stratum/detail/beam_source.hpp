@@ -251,7 +251,7 @@ public:
         *t = scale * difference(sines + x * y) * down_path;
     }
 
-    /// What the IMS of a column of slabs needs from this one (secondary_scattering_correction below): the true
+    /// What the IMS of a column of slabs needs from this one (secondary_scattering_correction, column_spike below): the true
     /// (unscaled) thickness tau, Omega tau and f Omega tau (0 without delta-M). Omega' = Omega (1 - f) / (1 - f
     /// Omega) gives f Omega = f Omega' / (1 - f + f Omega'); tau = tau' / (1 - f Omega).
     struct Peak {
@@ -262,11 +262,6 @@ public:
         const Real tau = tau_ / (1 - f_omega), omega = f > 0 ? f_omega / f : albedo_;
         return {tau, omega * tau, f_omega * tau};
     }
-    /// Whether `other` has the same truncated peak (delta-M's f and the exact phase function).
-    bool same_peak(const SlabBeam& other) const noexcept {
-        return truncation_ == other.truncation_ && hg_ == other.hg_ &&
-               (hg_ ? hg_g_ == other.hg_g_ : exact_moments_ == other.exact_moments_);
-    }
     /// The exact phase function's Legendre moment chi_l (g^l for Henyey-Greenstein; 0 beyond those given).
     Real peak_moment(std::size_t l) const noexcept {
         if (hg_) return std::pow(hg_g_, static_cast<Real>(l));
@@ -276,46 +271,6 @@ public:
     /// Henyey-Greenstein's g where the exact phase function is one (NaN otherwise).
     Real hg_asymmetry() const noexcept { return hg_ ? hg_g_ : std::numeric_limits<Real>::quiet_NaN(); }
 
-    // p_spike(c) = sum_l (2l + 1) q_l (2 - q_l) P_l(c) (secondary_scattering_correction): q_l = 1 below the L moments
-    // the solve keeps. For Henyey-Greenstein q_l = g^{l - L} beyond, and the tails sum in closed form from
-    // sum_l (2l + 1) h^l P_l(c) = HG_h(c):  p_spike = S(1) + 2 (HG_g - S(g)) / f - (HG_{g^2} - S(g^2)) / f^2,
-    // S(h) = sum_{l < L} (2l + 1) h^l P_l(c), f = g^L (the tails' cancellation costs eps / f relative, and the
-    // correction carries f^2). Otherwise the given moments beyond L, q_l = chi_l / f.
-    Real spike(Real c) const noexcept {
-        c = std::fmin(Real(1), std::fmax(Real(-1), c));
-        const std::size_t moments = phase_.moments().size();
-        const Real f = truncation_, g = hg_g_, g2 = g * g;
-        Real p0 = 1, p1 = c, s1 = 0, sg = 0, sg2 = 0, gl = 1, g2l = 1;
-        for (std::size_t l = 0; l < moments; ++l) {  // S(1), S(g), S(g^2)
-            const Real pl = l == 0 ? Real(1) : p1, term = static_cast<Real>(2 * l + 1) * pl;
-            s1 += term;
-            sg += term * gl;
-            sg2 += term * g2l;
-            gl *= g;
-            g2l *= g2;
-            if (l > 0) {
-                const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
-                p0 = p1;
-                p1 = p2;
-            }
-        }
-        if (hg_) {
-            const auto hg = [c](Real h) {
-                const Real omh = 1 - h, oph = 1 + h, denom = omh * omh + 2 * h * (1 - c);
-                return omh * oph / (denom * std::sqrt(denom));
-            };
-            return s1 + 2 * (hg(g) - sg) / f - (hg(g2) - sg2) / (f * f);
-        }
-        Real sum = s1;  // (p1 = P_L(c), p0 = P_{L-1}(c) here)
-        for (std::size_t l = moments; l < exact_moments_.size(); ++l) {
-            const Real q = std::fmin(Real(1), exact_moments_[l] / f);
-            sum += static_cast<Real>(2 * l + 1) * q * (2 - q) * p1;
-            const Real p2 = (static_cast<Real>(2 * l + 1) * c * p1 - static_cast<Real>(l) * p0) / static_cast<Real>(l + 1);
-            p0 = p1;
-            p1 = p2;
-        }
-        return sum;
-    }
 
     Real optical_thickness() const noexcept { return tau_; }
 
@@ -532,13 +487,16 @@ Real ims_xi(Real mu1, Real mu2, Real tau) noexcept {
     return (tau * half) * (tau * half) * h / (mu1 * mu2);
 }
 
-// p_spike of a column of slabs with different peaks: q_l = sum_j Omega_j tau_j chi_{l,j} / sum_j f_j Omega_j tau_j
-// beyond the L moments the solve keeps (1 below), over the slabs that have a truncated peak (f_j > 0; the others
-// have none to spread: counted, a backward Henyey-Greenstein slab's alternating moments cancelled the sum to 0 and
-// ended it early, a 3% spike at one thickness; found by review). Where those are all Henyey-Greenstein the tails sum
-// in closed form, q_l (2 - q_l) = 2 sum_j a_j g_j^l - sum_jk a_j a_k (g_j g_k)^l with a_j = Omega_j tau_j / F:
-//     p_spike = S(1) + 2 sum_j a_j (HG_{g_j} - S(g_j)) - sum_jk a_j a_k (HG_{g_j g_k} - S(g_j g_k))
-// (S as for SlabBeam::spike; q_L = 1, and q_l < 1 beyond); otherwise term by term, until sum_j a_j |chi_{l,j}| is
+// p_spike(c) = sum_l (2l + 1) q_l (2 - q_l) P_l(c) of a column of slabs (secondary_scattering_correction):
+// q_l = 1 below the L moments the solve keeps, and beyond q_l = sum_j Omega_j tau_j chi_{l,j} / sum_j f_j Omega_j
+// tau_j over the slabs that have a truncated peak (f_j > 0; the others have none to spread: counted, a backward
+// Henyey-Greenstein slab's alternating moments cancelled the sum to 0 and ended it early, a 3% spike at one
+// thickness; found by review). Where those are all Henyey-Greenstein the tails sum in closed form from
+// sum_l (2l + 1) h^l P_l(c) = HG_h(c): with a_j = Omega_j tau_j / sum f Omega tau, q_l (2 - q_l) = 2 sum_j a_j g_j^l
+// - sum_jk a_j a_k (g_j g_k)^l and
+//     p_spike = S(1) + 2 sum_j a_j (HG_{g_j} - S(g_j)) - sum_jk a_j a_k (HG_{g_j g_k} - S(g_j g_k)),
+// S(h) = sum_{l < L} (2l + 1) h^l P_l(c) (q_L = 1 and q_l < 1 beyond; for one slab a = 1 / f: the tails' cancellation
+// costs eps / f relative, and the correction carries f^2); otherwise term by term, until sum_j a_j |chi_{l,j}| is
 // below eps / 1024 (at most 20000 terms).
 template <class Real>
 Real column_spike(const std::vector<SlabBeam<Real>>& slabs, std::size_t first, std::size_t last, Real f_omega_tau,
@@ -549,12 +507,13 @@ Real column_spike(const std::vector<SlabBeam<Real>>& slabs, std::size_t first, s
         const Real omh = 1 - h, oph = 1 + h, denom = omh * omh + 2 * h * (1 - c);
         return omh * oph / (denom * std::sqrt(denom));
     };
-    // S(h) for the h needed, with S(1), in one Legendre recurrence
+    std::vector<std::size_t> peaked;  // the slabs with a truncated peak, their a_j and g_j (NaN: not HG)
     std::vector<Real> a, g;
     bool closed = true;
     for (std::size_t j = first; j <= last; ++j) {
         const typename SlabBeam<Real>::Peak p = slabs[j].peak();
         if (!(p.f_omega_tau > 0)) continue;
+        peaked.push_back(j);
         a.push_back(p.omega_tau / f_omega_tau);
         g.push_back(slabs[j].hg_asymmetry());
         closed = closed && std::isfinite(g.back());
@@ -588,12 +547,10 @@ Real column_spike(const std::vector<SlabBeam<Real>>& slabs, std::size_t first, s
     }
     for (std::size_t l = moments; l < 20000; ++l) {
         Real q = 0, size = 0;
-        std::size_t i = 0;
-        for (std::size_t j = first; j <= last; ++j) {
-            if (!(slabs[j].peak().f_omega_tau > 0)) continue;
-            const Real chi = slabs[j].peak_moment(l);
+        for (std::size_t i = 0; i < peaked.size(); ++i) {
+            const Real chi = slabs[peaked[i]].peak_moment(l);
             q += a[i] * chi;
-            size += a[i++] * std::fabs(chi);
+            size += a[i] * std::fabs(chi);
         }
         if (!(size > std::numeric_limits<Real>::epsilon() / 1024)) break;
         q = std::fmin(Real(1), q);
@@ -626,18 +583,16 @@ template <class Real>
 Real secondary_scattering_correction(const std::vector<SlabBeam<Real>>& slabs, std::size_t first, std::size_t last,
                                      Real x, Real y, Real cos_theta) noexcept {
     Real tau = 0, f_omega_tau = 0;
-    bool same = true;
     for (std::size_t j = first; j <= last; ++j) {
         const typename SlabBeam<Real>::Peak p = slabs[j].peak();
         tau += p.tau;
         f_omega_tau += p.f_omega_tau;
-        same = same && slabs[j].same_peak(slabs[first]);
     }
     if (!std::isfinite(tau) || !(tau > 0)) return Real(0);
     const Real f_omega = f_omega_tau / tau, keep = 1 - f_omega;
     if (!(f_omega > std::numeric_limits<Real>::epsilon())) return Real(0);  // (below rounding; 1 / f^2 finite)
-    const Real spike = same ? slabs[first].spike(cos_theta) : column_spike(slabs, first, last, f_omega_tau, cos_theta);
-    return f_omega * f_omega / keep / (4 * pi_v<Real> * x) * spike * ims_xi(y, x / keep, tau);
+    return f_omega * f_omega / keep / (4 * pi_v<Real> * x) * column_spike(slabs, first, last, f_omega_tau, cos_theta) *
+           ims_xi(y, x / keep, tau);
 }
 
 }  // namespace detail
