@@ -2584,6 +2584,7 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
         if (slabs_only) {
             for (const detail::SlabModes<Real>& p : stack.slabs) {
                 solved.push_back(detail::slab_mode_solution(p.slab, q_, p.phase.same_k(k), p.phase.opposite_k(k), k, true));
+                if (!(tolerance > 0)) continue;  // (the size serves the mode cut alone)
                 const Real tau = p.slab.optical_thickness();
                 slab_size = std::fmax(slab_size, detail::diffuse_size(slab_component(detail::slab_mode_operators(solved.back(), q_, tau)),
                                                                       q_.nodes, tau));
