@@ -987,6 +987,9 @@ struct BeamSolution {
     std::vector<SlabBeam<Real>> slabs;
     std::vector<LU<Real>> lu;  // per mode; no factors where nothing makes a diffuse field
     std::vector<Real> r21, r23;
+    // One slab between faces that reflect nothing back into it (index matched, black or no floor): the diffuse
+    // field's system is the identity, the field is the slab's response itself, and no factors are kept.
+    bool identity_system = false;
     Real floor = -1;           // a Lambertian floor's albedo (< 0: the bottom is specular)
     bool single_scattering = false;  // LayerOptions::single_scattering_correction
     std::vector<Real> eta, true_tau;                  // per slab: its index, its true optical thickness
@@ -1718,7 +1721,7 @@ private:
         if (ws.rhs.rows != size) ws.rhs = detail::Matrix<Real>(size, 1);
         for (std::size_t k = 0; k < kk; ++k) {
             const detail::LU<Real>& lu = beam_->lu[k];
-            if (lu.pivot.empty()) continue;
+            if (lu.pivot.empty() && !beam_->identity_system) continue;
             for (std::size_t j = 0; j < count; ++j) {  // scaled variables (C = diag(sqrt(w mu)), as the factors)
                 const bool lit = f.x[j] > 0;
                 for (std::size_t n = 0; n < m; ++n) {
@@ -1737,7 +1740,7 @@ private:
                         ws.rhs(2 * m * last + m + n, 0) += md.r(n, i) * w;
                     }
             }
-            detail::lu_solve(lu, ws.rhs);
+            if (!beam_->identity_system) detail::lu_solve(lu, ws.rhs);
             for (std::size_t j = 0; j < count; ++j)
                 for (std::size_t n = 0; n < m; ++n) {
                     const Real c = std::sqrt(q_.weights[n] * q_.nodes[n]);
@@ -2465,6 +2468,9 @@ void LayeredSurface<Real>::set_up_beam(const Boundary<Real>& top, const std::vec
         beam_->r23.push_back(bottom.lambertian() ? Real(0) : bottom.smooth_interface().reflectance(mu));
     }
     if (bottom.lambertian()) beam_->floor = bottom.floor_albedo();
+    beam_->identity_system = slabs.size() == 1 && !(beam_->floor > 0);
+    for (std::size_t i = 0; i < q_.size(); ++i)
+        beam_->identity_system = beam_->identity_system && beam_->r21[i] == 0 && beam_->r23[i] == 0;
     beam_->single_scattering = options.single_scattering_correction;
     beam_->eta.push_back(top.eta_below());
     for (const Boundary<Real>& b : interior) {
@@ -2696,7 +2702,7 @@ void LayeredSurface<Real>::add_beam_mode(int k, std::vector<detail::SlabModeSolu
             for (std::size_t i = 0; i < m; ++i)
                 for (std::size_t n = 0; n < m; ++n) x(i, n) *= c[i] / c[n];
     detail::LU<Real> lu;
-    if (diffuse) {  // (without scattering or a floor, no diffuse field: no factors)
+    if (diffuse && !beam_->identity_system) {  // (without scattering or a floor, no diffuse field: no factors)
         detail::Matrix<Real> rb(m, m);  // the bottom's reflection (scaled)
         for (std::size_t i = 0; i < m; ++i) {
             rb(i, i) = beam_->r23[i];
