@@ -1356,7 +1356,7 @@ private:
         }
         if (!(mu_t > 0)) return;
         const bool extrapolate = extrapolates(mu_t, top);
-        specular_spread(top, spread_point(mu_t, extrapolate), spread_points(extrapolate), ws, modes);
+        specular_spread(top, spread_point(mu_t, extrapolate), 2, ws, modes);
         if (top.rough() && mu_t > q_.nodes.back() && q_.size() >= 8) {  // (see extrapolates)
             std::swap(ws.in, ws.spread);  // the last ordinate's stencil, kept
             specular_spread(top, mu_t, 4, ws, modes);
@@ -1379,11 +1379,18 @@ private:
     // ordinates by 0.002 at 16 ordinates when the lobe's blend was min(r, 1/r); the smooth blend gives the spread a
     // far smaller share where the ordinates resolve the lobe.)
     // Beyond the last ordinate (towards mu = 1, where a beam at normal incidence lies) a beam entering through a
-    // specular top is extrapolated to with 4 points (from 8 ordinates on): put on the last ordinate, the fluxes of an
-    // index-matched top over a rough bottom at normal incidence were off by 4.4e-3 at 8 ordinates and 3.7e-4 at 16
-    // instead of 1e-4 and 1.7e-5 (found by review). At the exit the last ordinate takes it, and under a rough top the
+    // specular top is extrapolated to linearly from the last two ordinates (from 8 ordinates on): put on the last
+    // ordinate, the fluxes of an index-matched top over a rough bottom at normal incidence were off by 4.4e-3 at 8
+    // ordinates and 3.7e-4 at 16 (found by review). Extrapolated from 4 points (as until the sweep below), the stencil
+    // reached ordinates 54 degrees from the normal at 8 ordinates, where the other face's reflectance climbs towards
+    // its critical angle: a 1 | 1.1 top over a rough 1.1 | 1 bottom of RMS slope 0.03 around an empty slab reflected
+    // -2.3e-3 (returned as 0: R + T = 1.0017, found by a review sweep), and over 16 layers (RMS slope 0.03 to 0.5,
+    // matched or smooth top) the worst flux error at 8 ordinates was 1.7e-3 against 6.5e-4 linearly
+    // (tests/test_layer_inputs.cpp). At the exit the last ordinate takes it, and under a rough top the
     // spread's two stencils are blended by the lobe's share: the last ordinate by the specular share s (the share of a
-    // lobe the ordinates do not resolve), the extrapolation by 1 - s. Extrapolated whole, its negative shares made the
+    // lobe the ordinates do not resolve), the extrapolation (there from 4 points: the spread carries s of the flux, so
+    // the extrapolation's weight is s (1 - s) <= 1/4; 2 points left the flux errors of 6 layers with rough tops of RMS
+    // slope 0.05 to 0.3, at 8 to 24 ordinates, unchanged to 2 digits) by 1 - s. Extrapolated whole, its negative shares made the
     // field below the last ordinate negative for a beam through a nearly specular rough top (RMS slope 0.05, s ~ 1) at
     // normal incidence; the BTDF read it back negative between 8 and 12 degrees, returned 0 there (non_negative), and
     // integrated to 0.92 (16 ordinates) and 0.91 (32) where the transmittance is 0.743 (now 0.793 and 0.766; found by
@@ -1397,7 +1404,6 @@ private:
     Real spread_point(Real x, bool extrapolate = false) const noexcept {
         return extrapolate ? x : std::fmin(x, q_.nodes.back());
     }
-    static int spread_points(bool extrapolate = false) noexcept { return extrapolate ? 4 : 2; }
 
     // The blend of a rough face's lobe with the specular spread, used where the lobe meets the ordinates (entry,
     // exit_weights). `lobe` holds the lobe on the ordinates, whose Gauss sum is `gauss`; `exact` is its true value.
@@ -1969,7 +1975,7 @@ private:
             specular = expected * blend(gauss, expected, ws.out);
         }
         if (!(specular > 0) || !(mu_t > 0)) return;
-        specular_spread(face, spread_point(mu_t), spread_points(), ws, modes_);
+        specular_spread(face, spread_point(mu_t), 2, ws, modes_);
         for (std::size_t i = 0; i < m; ++i) {
             Real pole = 1;
             const Real step = pole_factor(mu_t, q_.nodes[i]);
