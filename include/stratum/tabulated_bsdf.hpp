@@ -384,7 +384,7 @@ struct FourierTable {
 /// dropped |a_k| sum to a quarter of that. error() reports the value measured (under a smooth top into a denser
 /// medium, of the stored shares f |wi.z| |wo.z| / (1 - F(mu_i)): see Side::entry). Between the grazing node (mu = 0,
 /// where the layer is evaluated at a tenth of the next node's cosine) and the next, the table holds what the
-/// spline gives.
+/// spline gives, but for the exit's value: f is held at its value at the first node above grazing (Side::first_cosine).
 ///
 /// Sampling: a lobe by the albedos at mu_i (the surface's, the tabulated reflection's and transmission's, the
 /// deltas'); for a tabulated lobe, t_o by inverting the exact integral of the spline of a_0 dmu/dt, then dphi by
@@ -706,6 +706,13 @@ private:
 
     struct Side {
         std::vector<Real> t, jacobian;                 // grid t_j = j / (n - 1); dmu/dt there
+        // The cosine of the first exit node above grazing, mu_1 at t_1. Below it the value f |wo.z| is a(t_1) mu_o / mu_1:
+        // f held at its value there (grazing_exit). The spline of a = f |wo.z| in t, whose slope at t = 0 is not 0
+        // where a vanishes like mu_o ~ t^2, gave f ~ 1 / sqrt(mu_o): eval 834 at wo.z = 1e-12 where the layer's brdf
+        // is 0.019, and camera paths (radiance transport) whose view is the table's exit had weights growing without
+        // bound at grazing views, 34 on average at wo.z = 1e-8 (found by a review sweep). The density keeps the
+        // spline, which the sampler draws from: over mu_o < mu_1 only the value changes.
+        Real first_cosine = 0;
         detail::FourierTable<Real> reflection, transmission;
         std::optional<RoughDielectric<Real>> surface;  // the top's rough reflection (analytic; sampled by it)
         std::optional<detail::SurfaceLobe<Real>> surface_lobe;  // the same, evaluated faster (SurfaceLobe)
@@ -825,15 +832,28 @@ private:
         LobeValue lobe(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, Vec3<Real> wi,
                        Vec3<Real> wo, bool density) const noexcept {
             if (tab.empty()) return {};
-            const Real t_o = detail::cosine_parameter(detail::clamp_unit(std::fabs(wo.z)));
+            const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
+            const Real t_o = detail::cosine_parameter(mu_o);
             const detail::SplineWeights<Real> so = detail::spline_weights(n(), t_o);
             Real c[kMaxOrder];
             const int order = interpolate(tab, si, so, c);
-            const Real g = detail::cosine_series(c, order, cos_dphi(wi, wo)) * entering(detail::clamp_unit(wi.z));
+            const Real x = cos_dphi(wi, wo), in = entering(detail::clamp_unit(wi.z));
+            const Real g = detail::cosine_series(c, order, x) * in;
             LobeValue v;
             v.value = g > 0 ? g : Real(0);
             if (density && order > 0 && c[0] > 0) v.density = sampled_density(tab, si, so, t_o, c[0], v.value);
+            if (mu_o < first_cosine) v.value = grazing_exit(tab, si, x, mu_o) * in;
             return v;
+        }
+
+        // f |wo.z| of the luminance (or the one channel), clamped to >= 0, at exit cosines mu_o below first_cosine:
+        // the series at t_1 times mu_o / mu_1 (see first_cosine). (Without the entering factor.)
+        Real grazing_exit(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, Real x,
+                          Real mu_o) const noexcept {
+            const detail::SplineWeights<Real> s1 = detail::spline_weights(n(), t[1]);
+            Real c[kMaxOrder];
+            const Real g = detail::cosine_series(c, interpolate(tab, si, s1, c), x);
+            return g > 0 ? g * (mu_o / first_cosine) : Real(0);
         }
 
         // value x (m / (dmu/dt)) / mean: the sampled density over the mixture's (see the class comment), m the
@@ -874,7 +894,8 @@ private:
             if (luminance_value) *luminance_value = 0;
             if (tab.empty()) return;
             const detail::SplineWeights<Real> si = weights(detail::clamp_unit(wi.z));
-            const detail::SplineWeights<Real> so = weights(detail::clamp_unit(std::fabs(wo.z)));
+            const Real mu_o = detail::clamp_unit(std::fabs(wo.z));  // (below first_cosine: at t_1, then scaled)
+            const detail::SplineWeights<Real> so = weights(std::fmax(mu_o, first_cosine));
             const Real x = cos_dphi(wi, wo);
             if (channels == 1) {
                 Real c[kMaxOrder];
@@ -905,7 +926,7 @@ private:
                 }
                 out[derived] = rest / luminance[static_cast<std::size_t>(derived)];
             }
-            const Real in = entering(detail::clamp_unit(wi.z));
+            const Real in = entering(detail::clamp_unit(wi.z)) * (mu_o < first_cosine ? mu_o / first_cosine : Real(1));
             for (int ch = 0; ch < channels; ++ch) out[ch] = out[ch] > 0 ? out[ch] * in : Real(0);
             if (luminance_value) *luminance_value *= in;
         }
@@ -1009,6 +1030,11 @@ private:
             const Real g = detail::cosine_series(c, order, cos_dphi_o);
             out.at.value = g > 0 ? g * in : Real(0);
             out.at.density = sampled_density(tab, si, so, t_o, c[0], out.at.value);
+            if (mu_o < first_cosine) {  // the value as lobe() and lobe_channels() give it there (first_cosine)
+                out.at.value = grazing_exit(tab, si, cos_dphi_o, mu_o) * in;
+                if (channel_values && channels > 1) lobe_channels(tab, wi, out.wo, channel_values);
+                return out;
+            }
             if (channel_values && channels > 1) {
                 stored_channel_values(tab, si, so, cos_dphi_o, g, channel_values);
                 for (int ch = 0; ch < channels; ++ch) channel_values[ch] *= in;
@@ -1340,6 +1366,7 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
     }
     s.jacobian.resize(s.t.size());
     for (std::size_t j = 0; j < s.t.size(); ++j) s.jacobian[j] = detail::parameter_jacobian(s.t[j]);
+    s.first_cosine = detail::parameter_cosine(s.t[1]);
     for (int w = 0; w < 2; ++w) {
         // Stored: the one channel; or the luminance, then every channel but the derived one.
         std::vector<const detail::DenseLobe<L>*> series;
