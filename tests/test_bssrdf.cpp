@@ -7,10 +7,12 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
 
+#include <stratum/henyey_greenstein.hpp>
 #include <stratum/quadrature.hpp>
 
 #include "test_util.hpp"
@@ -156,4 +158,33 @@ TEST_CASE("BSSRDF: the probe density stays a number where sigma_tr^2 overflows (
     CHECK(std::isfinite(p));
     CHECK(p == doctest::Approx(0.5 * s * s * std::exp(-s * r_float) / (2 * 3.141592653589793)).epsilon(1e-4));
     CHECK(tiny.pdf({1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}) == 0.0f);  // far out: e^{-u} underflows
+}
+
+TEST_CASE("BSSRDF: uniforms outside [0, 1) are clamped into it (found by a review sweep)") {
+    // A NaN or huge u_axis made static_cast<int>(u N) INT_MIN: sample_probe (noexcept) read channels_[INT_MIN] and
+    // crashed; u_axis = -0.25 read channels_[-1]; a NaN u2 gave a NaN origin that valid() accepted. Now every
+    // uniform is clamped into [0, 1 - eps/2] (NaN to 0): the sample at the nearest end.
+    const DipoleBSSRDF<double, 3> b = skin();
+    const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+    for (double u : {nan, -1e10, -0.25, -inf, 1.0, 2.0, 1e300, inf})
+        for (int which = 0; which < 3; ++which) {
+            const double u_axis = which == 0 ? u : 0.3, u1 = which == 1 ? u : 0.4, u2 = which == 2 ? u : 0.6;
+            const ProbeSample<double> p = b.sample_probe(u_axis, u1, u2);
+            CAPTURE(u);
+            CAPTURE(which);
+            CHECK(p.valid());
+            CHECK(p.channel >= 0);
+            CHECK(p.channel < 3);
+            CHECK(std::isfinite(p.origin.x));
+            CHECK(std::isfinite(p.origin.y));
+            CHECK(std::isfinite(p.origin.z));
+        }
+    // At the ends: u_axis below 0 is u_axis = 0 (the z axis, the first channel), above 1 the y axis, the last channel.
+    CHECK(b.sample_probe(-1, 0.5, 0.5).channel == b.sample_probe(0, 0.5, 0.5).channel);
+    CHECK(b.sample_probe(2, 0.5, 0.5).axis.y == 1);
+    CHECK(b.sample_probe(2, 0.5, 0.5).channel == 2);
+    // Henyey-Greenstein's sampler likewise (a NaN u2 gave a NaN direction).
+    const PhaseSample<double> h = HenyeyGreenstein<double>(0.8).sample(0.3, nan);
+    CHECK(std::isfinite(h.direction.x));
+    CHECK(std::isfinite(h.direction.y));
 }

@@ -90,11 +90,13 @@ public:
 
     /// Samples a probe with three uniforms in [0, 1): the axis by u_axis (z, the normal, with probability 1/2; x and
     /// y 1/4 each), the channel uniformly by u_axis's place within the axis's share, the radius from the channel's
-    /// sigma_tr^2 r e^{-sigma_tr r} by u1 (Dipole::sample_radius) and the azimuth around the axis by u2.
+    /// sigma_tr^2 r e^{-sigma_tr r} by u1 (Dipole::sample_radius) and the azimuth around the axis by u2. Uniforms
+    /// outside [0, 1), NaN included, are clamped into it (detail::clamp_uniform; a NaN u_axis indexed the channels at
+    /// INT_MIN, found by a review sweep).
     ProbeSample<Real> sample_probe(Real u_axis, Real u1, Real u2) const noexcept {
         ProbeSample<Real> p;
         int axis = 2;
-        Real u = u_axis;
+        Real u = detail::clamp_uniform(u_axis);
         if (u < Real(0.5)) {
             u = 2 * u;
         } else if (u < Real(0.75)) {
@@ -106,7 +108,7 @@ public:
         }
         const int channel = std::min(static_cast<int>(u * Real(N)), static_cast<int>(N) - 1);
         const Real r = channels_[static_cast<std::size_t>(channel)].sample_radius(u1);
-        const Real phi = 2 * detail::pi_v<Real> * u2;
+        const Real phi = 2 * detail::pi_v<Real> * detail::clamp_uniform(u2);
         const Real a = r * std::cos(phi), b = r * std::sin(phi);
         // The disk's point in the plane perpendicular to the axis: (a, b) on the other two axes, in order.
         p.origin = axis == 2 ? Vec3<Real>{a, b, 0} : (axis == 0 ? Vec3<Real>{0, a, b} : Vec3<Real>{b, 0, a});

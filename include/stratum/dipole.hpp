@@ -370,8 +370,7 @@ public:
     /// in double); xi = 0 gives 0. Without absorption (sigma_tr = 0) the pdf does not exist: returns 0.
     STRATUM_HOST_DEVICE Real sample_radius(Real xi) const noexcept {
         if (!(sigma_tr_ > 0)) return Real(0);
-        constexpr Real below_one = 1 - std::numeric_limits<Real>::epsilon() / 2;
-        xi = xi > 0 ? (xi < below_one ? xi : below_one) : Real(0);
+        xi = detail::clamp_uniform(xi);
         // x = (xi - 1) / e with 1 - xi exact for xi >= 1/2; q = e x + 1 = xi exactly.
         const Real x = -(1 - xi) * detail::InvE<Real>::hi;
         return -detail::lambert_wm1_plus_one(x, xi) / sigma_tr_;

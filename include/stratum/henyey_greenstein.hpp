@@ -99,7 +99,7 @@ public:
         const Real one_plus_c = Real(2) * opg * opg * u * b * inv_d2;
         const Real c = std::fmin(Real(1), std::fmax(Real(-1), (one_plus_c - one_minus_c) / Real(2)));
         const Real sin_theta = std::sqrt(std::fmax(Real(0), one_minus_c * one_plus_c));
-        const Real phi = detail::two_pi_v<Real> * u2;
+        const Real phi = detail::two_pi_v<Real> * detail::clamp_uniform(u2);  // (a NaN u2 gave a NaN direction)
         return {{sin_theta * std::cos(phi), sin_theta * std::sin(phi), c}, c, density(one_minus_c, one_plus_c)};
     }
 

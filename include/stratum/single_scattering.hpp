@@ -36,6 +36,7 @@
 #include <cmath>
 #include <limits>
 
+#include "detail/math.hpp"
 #include "detail/validate.hpp"
 #include "henyey_greenstein.hpp"
 #include "vec3.hpp"
@@ -127,9 +128,7 @@ public:
     /// s_o' with pdf sigma_t e^{-sigma_t s}: s = -log(1 - xi) / sigma_t, xi clamped to [0, 1 - eps/2]
     /// (finite for xi = 1; 0 for xi <= 0 or NaN).
     Real sample_distance(Real xi) const noexcept {
-        constexpr Real below_one = 1 - std::numeric_limits<Real>::epsilon() / 2;
-        xi = xi > 0 ? (xi < below_one ? xi : below_one) : Real(0);
-        return -std::log1p(-xi) / sigma_t_;
+        return -std::log1p(-detail::clamp_uniform(xi)) / sigma_t_;
     }
 
     /// sigma_t e^{-sigma_t s} for s >= 0, else 0.

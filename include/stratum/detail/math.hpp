@@ -43,6 +43,14 @@ STRATUM_HOST_DEVICE Real saturate_to(W w) noexcept {
     return w > static_cast<W>(largest) ? largest : static_cast<Real>(w);
 }
 
+/// A sampler's uniform variate clamped into [0, 1 - eps/2], NaN and negatives to 0: an argument from outside [0, 1)
+/// gives the sample at the nearest end, never an index out of range, a NaN or an infinite distance.
+template <class Real>
+STRATUM_HOST_DEVICE Real clamp_uniform(Real u) noexcept {
+    constexpr Real below_one = 1 - std::numeric_limits<Real>::epsilon() / 2;
+    return u > 0 ? (u < below_one ? u : below_one) : Real(0);
+}
+
 /// T in a context where it is not deduced, so that arguments convert to it (a RoughDielectric to a
 /// Boundary in solve_layer) instead of taking part in template argument deduction.
 template <class T>
