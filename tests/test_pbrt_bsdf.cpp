@@ -181,6 +181,12 @@ TEST_CASE("pbrt .bsdf: files pbrt-v3 would refuse are refused") {
     const float descending = 0.5f;  // mu[0] = 0.5 > mu[1]
     std::memcpy(&bad[64], &descending, 4);
     CHECK_THROWS_AS(read(bad), std::runtime_error);
+    bad = good;
+    // nCoeffs 2^31 - 1 in a file that holds far fewer: "truncated" at the file's end, the coefficients read in chunks
+    // (all of them were allocated first: 8.6 GB, or std::bad_alloc under a memory limit; found by a review sweep)
+    const std::int32_t claimed = 2147483647;
+    std::memcpy(&bad[16], &claimed, 4);
+    CHECK_THROWS_WITH_AS(read(bad), "stratum: pbrt .bsdf file: truncated", std::runtime_error);
     CHECK_THROWS_AS(read(good.substr(0, good.size() - 4)), std::runtime_error);  // truncated
     CHECK_THROWS_AS(read(good.substr(0, 30)), std::runtime_error);
     CHECK_THROWS_AS(read_pbrt_bsdf(std::string("/nonexistent/x.bsdf")), std::runtime_error);

@@ -19,6 +19,7 @@
 // faces): they are left out, as pbrt-v3's FourierBSDF is glossy only.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -333,7 +334,6 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     t.cdf.resize(nn);
     t.offset.resize(nn);
     t.length.resize(nn);
-    t.coeffs.resize(static_cast<std::size_t>(n_coeffs));
     detail::get_bytes(in, t.mu.data(), 4 * t.mu.size());
     for (std::size_t j = 0; j < t.mu.size(); ++j)
         if (!(t.mu[j] >= -1 && t.mu[j] <= 1) || (j > 0 && !(t.mu[j] >= t.mu[j - 1])))
@@ -346,7 +346,16 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
             t.offset[p] > n_coeffs - channels * t.length[p])
             throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
     }
-    detail::get_bytes(in, t.coeffs.data(), 4 * t.coeffs.size());
+    // In chunks of 2^20, so that a header claiming more coefficients than the file holds fails at the file's end
+    // having allocated no more than it read (a 52-byte file claiming 2^31 - 1 allocated 8.6 GB before "truncated";
+    // found by a review sweep).
+    const std::size_t total = static_cast<std::size_t>(n_coeffs), chunk = std::size_t(1) << 20;
+    for (std::size_t done = 0; done < total;) {
+        const std::size_t count = std::min(chunk, total - done);
+        t.coeffs.resize(done + count);
+        detail::get_bytes(in, t.coeffs.data() + done, 4 * count);
+        done += count;
+    }
     return t;
 }
 inline PbrtBsdfTable read_pbrt_bsdf(const std::string& path) {
