@@ -576,3 +576,33 @@ TEST_CASE("from_reflectance keeps sigma_a accurate as Rd -> 1, where alpha' cann
         CHECK(stratum_test::close_rel(dip.sigma_a(), dip.sigma_t_prime() * static_cast<double>(s * s / 3), 1e-14));
     }
 }
+
+TEST_CASE("Dipole<float>: the total reflectance is the profile's integral near alpha' = 1 (found by review)") {
+    // The total came from alpha', whose 1 - alpha' float does not resolve near 1: at sigma_a 1e-7, sigma_s' 1 it was
+    // 0.998366 where the profile integrates to 0.998504 (double's total), 10% of 1 - R_d. Now from s, as sigma_tr.
+    for (float sigma_a : {1e-6f, 1e-7f, 1e-5f}) {
+        const Dipole<float> f(sigma_a, 1.0f, 1.3f);
+        const Dipole<double> d(sigma_a, 1.0, 1.3);
+        CAPTURE(sigma_a);
+        CHECK(static_cast<double>(f.total_reflectance()) == doctest::Approx(d.total_reflectance()).epsilon(1e-6));
+    }
+}
+
+TEST_CASE("Dipole: a boundary given as numbers and Hery's parameters are validated (found by review)") {
+    // DipoleBoundary is an aggregate: A = -5 gave a total reflectance of 9.04, A = NaN a NaN one and a NaN table.
+    CHECK_THROWS_WITH_AS(Dipole<double>(0.1, 1.0, DipoleBoundary<double>{1.3, -5.0}), doctest::Contains("boundary.A"),
+                         std::invalid_argument);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    CHECK_THROWS_AS(Dipole<double>(0.1, 1.0, DipoleBoundary<double>{1.3, nan}), std::invalid_argument);
+    CHECK_THROWS_AS(Dipole<double>(0.1, 1.0, DipoleBoundary<double>{nan, 2.0}), std::invalid_argument);
+    CHECK_THROWS_AS(AlphaPrimeTable<double>(DipoleBoundary<double>{1.3, 0.5}), std::invalid_argument);
+    CHECK_THROWS_AS(Dipole<double>::from_albedo(0.5, 1.0, DipoleBoundary<double>{1.3, nan}), std::invalid_argument);
+    CHECK_NOTHROW(Dipole<double>(0.1, 1.0, DipoleBoundary<double>{1.0, 1.0}));  // index matched: A = 1
+    // A subnormal diffuse mean free path made sigma_t' = inf (refused by the coefficients' constructor), and R_d(r)
+    // was 0 everywhere while total_reflectance() said 0.30.
+    CHECK_THROWS_WITH_AS(Dipole<double>::from_albedo(0.5, 1e-310, 1.3), doctest::Contains("diffuse_mean_free_path"),
+                         std::invalid_argument);
+    CHECK_THROWS_WITH_AS(Dipole<double>::from_reflectance(0.5, 1e-310, 1.3), doctest::Contains("diffuse_mean_free_path"),
+                         std::invalid_argument);
+    CHECK_NOTHROW(Dipole<double>::from_albedo(0.5, 1e-300, 1.3));
+}
