@@ -629,8 +629,24 @@ TEST_CASE("options: ordinates 1, 2, 3 and one mode are accepted; 0 and negative 
         check_surface(solve_layer(slab, faces.top, faces.bottom, o), std::string(faces.name) + ", no renormalization");
     }
     const Boundary<double> top = RoughDielectric<double>(0.3, 1.0, 1.4), bottom = SmoothDielectric<double>(1.4, 1.0);
-    for (int m : {0, -1, INT_MIN}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(m)), "options.ordinates");
+    // (4097 and 2^30: 2^30 threw std::length_error from an allocation; found by a review sweep)
+    for (int m : {0, -1, INT_MIN, 4097, 1 << 30}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(m)), "options.ordinates");
     for (int k : {-1, INT_MIN}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3, k)), "options.modes");
+    {  // enumerations from out-of-range integers (used silently: Renormalization(99) changed R from 0.1407 to 0.1179)
+        LayerOptions o = with_ordinates(3);
+        o.renormalization = static_cast<stratum::Renormalization>(99);
+        CHECK_REJECTS(solve_layer(slab, top, bottom, o), "options.renormalization");
+        o = with_ordinates(3);
+        o.specular_transmission = static_cast<stratum::SpecularTransmission>(99);
+        CHECK_REJECTS(solve_layer(slab, top, bottom, o), "options.specular_transmission");
+    }
+    {  // a depth of inf in a semi-infinite layer (refused naming an internal thickness, "optical_thickness = -nan")
+        LayerRequest<double> r;
+        r.depths = {1.0, std::numeric_limits<double>::infinity()};
+        CHECK_REJECTS(solve_layer(Slab<double>(0.9, 0.5, std::numeric_limits<double>::infinity()), top, bottom,
+                                  with_ordinates(4), r),
+                      "request.depths[1]");
+    }
     for (int n : {1, 33, INT_MIN}) {
         LayerOptions o = with_ordinates(3);
         o.hemispherical_nodes = n;

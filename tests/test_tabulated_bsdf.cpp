@@ -407,6 +407,17 @@ TEST_CASE("TabulatedBSDF: sides, transport mode, degenerate input and validation
     CHECK_THROWS_AS(TabulatedBSDF<double>(above, 0.0), std::invalid_argument);
     CHECK_THROWS_AS(TabulatedBSDF<double>(above, 0.9), std::invalid_argument);
     CHECK_THROWS_AS(TabulatedBSDF<double>(above, nan), std::invalid_argument);
+    // ... and that the second layer is the first turned over: the same asymmetric layer twice, or the turned layer of
+    // another index, built a table that answered light from below with the wrong layer (found by a review sweep).
+    CHECK_THROWS_AS(TabulatedBSDF<double>(above, above, 1e-2), std::invalid_argument);
+    CHECK_NOTHROW(TabulatedBSDF<double>(below, above, 3e-2));  // (turning over goes both ways)
+    LayerOptions o;
+    o.ordinates = 8;
+    const LayeredSurface<double> other = solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), RoughDielectric<double>(0.5, 1.2, 2.0),
+                                                     RoughDielectric<double>(0.3, 2.0, 1.0), o);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(above, other, 1e-2), std::invalid_argument);
+    CHECK_THROWS_AS(TabulatedBSDF<double>(std::vector<LayeredSurface<double>>{above}, std::vector<LayeredSurface<double>>{other}, 1e-2),
+                    std::invalid_argument);
 }
 
 TEST_CASE("TabulatedBSDF<float> from a double layer: the double table rounded") {
@@ -494,7 +505,9 @@ TEST_CASE("TabulatedBSDF: non-unit directions give finite values (found by fuzz_
         }
     // A wi near the largest double, from below on a two-sided table, sampled the surface lobe's mirror direction as
     // inf - inf, a "valid" sample of direction (nan, nan, -inf) (found by fuzz_renderer): now an invalid sample.
-    const TabulatedBSDF<double> two(layer, layer, 3e-2);
+    const LayeredSurface<double> turned = solve_layer(Slab<double>::from_transparency(0.9, 0.8, 0.5), RoughDielectric<double>(0.5, 1.2, 1.4),
+                                                      RoughDielectric<double>(0.3, 1.4, 1.0), o);
+    const TabulatedBSDF<double> two(layer, turned, 3e-2);
     for (const Vec3<double>& wi : {Vec3<double>{-2.6055605938966872e+224, -3.1646401772409293e-277, -1.2920927960622721e+308},
                                    Vec3<double>{1e300, 1e300, 1e300}, Vec3<double>{0, 0, 1e-310}}) {
         for (const double u : {0.0, 0.3, 0.99}) {

@@ -79,7 +79,7 @@ constexpr bool needs_transmitted(LayerOutput set) noexcept {
 
 /// Discretization knobs.
 struct LayerOptions {
-    int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), >= 1 (>= 2 under a
+    int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), 1 to 4096 (>= 2 under a
                           ///< smooth face whose critical cosine exceeds 0.5: detail::require_escape)
     int modes = 0;        ///< K azimuthal modes; 0 = 2M (as many as 2M Legendre moments support)
     bool delta_m = true;  ///< delta-M scaling (Wiscombe 1977) with 2M moments, for g > 0 (forward peaks)
@@ -244,11 +244,22 @@ namespace detail {
 
 /// LayerOptions' counts in range: ordinates >= 1, modes >= 0, hemispherical_nodes in [2, 32], azimuthal_points >= 2.
 inline void require_options(const LayerOptions& options) {
-    require_count("options.ordinates", options.ordinates, 1);
+    // At most 4096 ordinates, beyond any discretization solved in practice (a rough face's operators alone take
+    // 32 M^3 bytes, 4.3 GB at 512, which may still fail to allocate below the bound); 2^30 threw std::length_error
+    // from an allocation (found by a review sweep).
+    if (options.ordinates < 1 || options.ordinates > 4096) throw_out_of_range("options.ordinates", options.ordinates, "[1, 4096]");
     require_count("options.modes", options.modes, 0);
     if (options.hemispherical_nodes < 2 || options.hemispherical_nodes > 32)
         throw_out_of_range("options.hemispherical_nodes", options.hemispherical_nodes, "[2, 32]");
     require_count("options.azimuthal_points", options.azimuthal_points, 2);
+    // Enumerations converted from out-of-range integers were used silently (Renormalization(99) changed R).
+    if (options.renormalization != Renormalization::none && options.renormalization != Renormalization::hemispherical_totals)
+        throw_out_of_range("options.renormalization", static_cast<int>(options.renormalization), "{0, 1} (Renormalization)");
+    if (options.specular_transmission != SpecularTransmission::pointwise &&
+        options.specular_transmission != SpecularTransmission::flux_conserving &&
+        options.specular_transmission != SpecularTransmission::automatic)
+        throw_out_of_range("options.specular_transmission", static_cast<int>(options.specular_transmission),
+                           "{0, 1, 2} (SpecularTransmission)");
 }
 
 /// The spacing of ascending ordinates around x: between the first ordinate at or above x and the one before it
@@ -474,8 +485,9 @@ class LayeredSurface;
 template <class Real = double>
 class PreparedBoundary {
 public:
-    /// Throws std::invalid_argument for options out of range (detail::require_options: ordinates < 1, modes < 0,
-    /// hemispherical_nodes outside [2, 32], azimuthal_points < 2), naming the option.
+    /// Throws std::invalid_argument for options out of range (detail::require_options: ordinates outside [1, 4096],
+    /// modes < 0, hemispherical_nodes outside [2, 32], azimuthal_points < 2, an enumeration's value unknown), naming
+    /// the option.
     explicit PreparedBoundary(const Boundary<Real>& boundary, const LayerOptions& options = {})
         : boundary_(boundary), options_(options),
           from_above_(std::make_shared<const detail::EntryTransmittance<Real>>(boundary, Incidence::from_above)),
@@ -771,8 +783,12 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
                        std::nextafter(Real(0), Real(1)), Real(1));
     Real total = 0;
     for (const Slab<Real>& slab : slabs) total += slab.optical_thickness();
-    for (std::size_t j = 0; j < request.depths.size(); ++j)
-        require_closed(("request.depths[" + std::to_string(j) + "]").c_str(), request.depths[j], Real(0), total);
+    for (std::size_t j = 0; j < request.depths.size(); ++j) {
+        const std::string name = "request.depths[" + std::to_string(j) + "]";
+        require_closed(name.c_str(), request.depths[j], Real(0), total);
+        // (a semi-infinite stack's depth inf passed the range and failed later naming an internal thickness, NaN)
+        if (!std::isfinite(request.depths[j])) throw_out_of_range(name.c_str(), request.depths[j], "[0, inf)");
+    }
 }
 
 /// The Fourier modes to solve: LayerOptions::modes (0: 2M, as many as 2M Legendre moments support) capped by

@@ -417,11 +417,13 @@ public:
     TabulatedBSDF(const LayeredSurface<LayerReal>& layer, Real tolerance) : tolerance_(check_tolerance(tolerance)) {
         sides_[0] = tabulate(std::vector<const LayeredSurface<LayerReal>*>{&layer}, {}, tolerance);
     }
-    /// Two-sided: `from_above` lit from above, `from_below` the same layer turned over.
+    /// Two-sided: `from_above` lit from above, `from_below` the same layer turned over (its faces are checked:
+    /// std::invalid_argument where they are not from_above's exchanged and turned over, or a face is a floor).
     template <class LayerReal>
     TabulatedBSDF(const LayeredSurface<LayerReal>& from_above, const LayeredSurface<LayerReal>& from_below,
                   Real tolerance)
         : tolerance_(check_tolerance(tolerance)) {
+        require_turned_over(from_above, from_below);
         sides_[0] = tabulate(std::vector<const LayeredSurface<LayerReal>*>{&from_above}, {}, tolerance);
         sides_[1] = tabulate(std::vector<const LayeredSurface<LayerReal>*>{&from_below}, {}, tolerance);
     }
@@ -444,6 +446,7 @@ public:
         const auto above = channel_layers(from_above), below = channel_layers(from_below);
         if (above.size() != below.size())
             detail::fail_invalid_argument("stratum: TabulatedBSDF: as many channels from below as from above");
+        for (std::size_t c = 0; c < above.size(); ++c) require_turned_over(*above[c], *below[c]);
         const std::vector<Real> w = luminance_weights(std::move(luminance), above.size());
         sides_[0] = tabulate(above, w, tolerance);
         sides_[1] = tabulate(below, w, tolerance);
@@ -1112,6 +1115,24 @@ private:
     // would ask for light from below, which is not tabulated.
     bool one_sided_transmission(Vec3<Real> wi, Vec3<Real> wo) const noexcept {
         return !sides_[1] && wi.z > 0 && wo.z < 0;
+    }
+
+    // That `below` is `above` turned over, as far as the faces tell (the slabs are not compared): each face of one is
+    // the other's opposite face with its indices exchanged, of the same roughness and shadowing. Unchecked, the same
+    // asymmetric layer given twice, or another layer, built a table that answered light from below with the wrong
+    // layer (found by a review sweep).
+    template <class LayerReal>
+    static void require_turned_over(const LayeredSurface<LayerReal>& above, const LayeredSurface<LayerReal>& below) {
+        const auto opposite = [](const Boundary<LayerReal>& a, const Boundary<LayerReal>& b) {
+            if (a.lambertian() || b.lambertian() || a.eta_above() != b.eta_below() || a.eta_below() != b.eta_above() ||
+                a.rough() != b.rough())
+                return false;
+            return !a.rough() || (a.rough_interface()->sigma() == b.rough_interface()->sigma() &&
+                                  a.rough_interface()->shadowing() == b.rough_interface()->shadowing());
+        };
+        if (!opposite(above.top(), below.bottom()) || !opposite(above.bottom(), below.top()))
+            detail::fail_invalid_argument("stratum: TabulatedBSDF: the layer from below is not the layer from above turned "
+                                          "over (its faces exchanged, each with its indices swapped; no Lambertian floor)");
     }
 
     static Real check_tolerance(Real tolerance) {
