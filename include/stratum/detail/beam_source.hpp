@@ -208,8 +208,12 @@ struct BeamResponse {
         // x (1 - 2s) and x (1 - 4s) across sqrt(1 - x), were O(sqrt(s)) off, not 0: in float (s = 1.4e-3) a BTDF along
         // the normal 0.015 for 0.0089 and 0.094 or 0 a milliradian from it, by azimuth (found by a review sweep).
         Real sine_ratio = 1;
+        // (ratio <= 2 or so (respond() chooses the points so); its power overflows only for k beyond ~256 in float,
+        // where mode k at x, ~ (1 - x^2)^{k/2} with 1 - x ~ s, is below any value's rounding: 0 then, not inf x 0.)
         Real mode_weight(int k) const noexcept {
-            return k == 0 ? weight : weight * std::pow(std::sqrt(sine_ratio), static_cast<Real>(k));
+            if (k == 0) return weight;
+            const Real w = weight * std::pow(std::sqrt(sine_ratio), static_cast<Real>(k));
+            return std::isfinite(w) ? w : Real(0);
         }
         std::vector<Real> zp, zm, e;  // e: per mode, e^{-tau/x} (the same for every mode; kept per point)
         std::vector<Real> same, opposite;  // the phase rows at x (only beside a resonance; else the response's)
@@ -295,12 +299,11 @@ public:
         out.same.resize(kk * m_size);
         out.opposite.resize(kk * m_size);
         phase_.at(x, out.same.data(), out.opposite.data(), modes, scratch);
-        // Evaluation points: x itself, or two beside a resonance 1/x = lambda_j, within a relative s of it:
-        // 4 sqrt(eps) in double and wider types; 1e-4 in float, where 4 sqrt(eps) = 1.4e-3 left the interpolation
-        // across the resonance 70% off (a BTDF along the normal 0.0152 for 0.0089) and 1e-5 the cancellation 5e-3:
-        // over 96 layers between smooth or index-matched faces (g 0 to 0.95, albedo 0.9 to 1, tau 1 to 100, M = 8)
-        // the BRDF and BTDF in float are within 5.7e-4 of double's (24 beyond 1e-3 before; found by a review sweep).
-        const Real s = sizeof(Real) < sizeof(double) ? Real(1e-4) : 4 * std::sqrt(std::numeric_limits<Real>::epsilon());
+        // Evaluation points: x itself, or two beside a resonance 1/x = lambda_j, within a relative s = 4 sqrt(eps) of
+        // it. (In float s = 1.4e-3 is wide: across a resonance near the normal the interpolation can be far off, a
+        // BTDF along the normal 0.0152 for double's 0.0089 (README, known limitations); a narrower s = 1e-4 traded that
+        // for the cancellation, 148% off elsewhere: found by review.)
+        const Real s = 4 * std::sqrt(std::numeric_limits<Real>::epsilon());
         bool near = false;
         for (std::size_t k = 0; k < kk && !near; ++k)
             for (const Real l : modes_[k].lambda) near = near || std::fabs(l * x - Real(1)) < s;
@@ -310,8 +313,11 @@ public:
             out.point[0].weight = 1;
             out.point[0].sine_ratio = 1;
         } else {
-            // (x (1 + 2s) = 1 exactly is not taken: the modes k >= 1 vanish there, and with them the interpolation.)
-            const Real x1 = x * (1 - 2 * s), x2 = x * (1 + 2 * s) < Real(1) ? x * (1 + 2 * s) : x * (1 - 4 * s);
+            // x (1 + 2s) is taken only while 1 - x (1 + 2s) >= (1 - x) / 2: nearer 1 the modes k >= 1, which vanish there
+            // like sin^k(theta), would be scaled back by ((1 - x^2) / (1 - x2^2))^{k/2}, which overflows (inf x 0 = NaN
+            // in float at M = 16 with x2 a few ulp below 1; found by review): the other side is extrapolated from instead.
+            const Real up = x * (1 + 2 * s);
+            const Real x1 = x * (1 - 2 * s), x2 = up <= (1 + x) / 2 ? up : x * (1 - 4 * s);
             out.points = 2;
             out.point[0].x = x1;
             out.point[1].x = x2;
