@@ -598,6 +598,9 @@ TEST_CASE("Dipole: a boundary given as numbers and Hery's parameters are validat
     CHECK_THROWS_AS(AlphaPrimeTable<double>(DipoleBoundary<double>{1.3, 0.5}), std::invalid_argument);
     CHECK_THROWS_AS(Dipole<double>::from_albedo(0.5, 1.0, DipoleBoundary<double>{1.3, nan}), std::invalid_argument);
     CHECK_NOTHROW(Dipole<double>(0.1, 1.0, DipoleBoundary<double>{1.0, 1.0}));  // index matched: A = 1
+    // A = +inf where F_dr rounds to 1 (float, exact model, eta 1000): accepted, as from_eta gives it (found by review)
+    CHECK_NOTHROW(Dipole<float>(0.1f, 1.0f, 1000.0f, DiffuseFresnel::exact));
+    CHECK(std::isfinite(Dipole<float>(0.1f, 1.0f, 1000.0f, DiffuseFresnel::exact).Rd(0.5f)));
     // A subnormal diffuse mean free path made sigma_t' = inf (refused by the coefficients' constructor), and R_d(r)
     // was 0 everywhere while total_reflectance() said 0.30.
     CHECK_THROWS_WITH_AS(Dipole<double>::from_albedo(0.5, 1e-310, 1.3), doctest::Contains("diffuse_mean_free_path"),

@@ -631,7 +631,7 @@ TEST_CASE("options: ordinates 1, 2, 3 and one mode are accepted; 0 and negative 
     const Boundary<double> top = RoughDielectric<double>(0.3, 1.0, 1.4), bottom = SmoothDielectric<double>(1.4, 1.0);
     // (4097 and 2^30: 2^30 threw std::length_error from an allocation; found by a review sweep)
     for (int m : {0, -1, INT_MIN, 4097, 1 << 30}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(m)), "options.ordinates");
-    for (int k : {-1, INT_MIN}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3, k)), "options.modes");
+    for (int k : {-1, INT_MIN, 8193, 1 << 30}) CHECK_REJECTS(solve_layer(slab, top, bottom, with_ordinates(3, k)), "options.modes");
     {  // enumerations from out-of-range integers (used silently: Renormalization(99) changed R from 0.1407 to 0.1179)
         LayerOptions o = with_ordinates(3);
         o.renormalization = static_cast<stratum::Renormalization>(99);
@@ -652,7 +652,7 @@ TEST_CASE("options: ordinates 1, 2, 3 and one mode are accepted; 0 and negative 
         o.hemispherical_nodes = n;
         CHECK_REJECTS(solve_layer(slab, top, bottom, o), "options.hemispherical_nodes");
     }
-    for (int n : {1, 0, INT_MIN}) {
+    for (int n : {1, 0, INT_MIN, 1025, 1 << 30}) {
         LayerOptions o = with_ordinates(3);
         o.azimuthal_points = n;
         CHECK_REJECTS(solve_layer(slab, top, bottom, o), "options.azimuthal_points");
