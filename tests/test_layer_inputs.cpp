@@ -353,10 +353,11 @@ TEST_CASE("nearly specular rough faces lit at the normal: the BTDF integrates to
     // Faces of RMS slope 0.05: the refracted beam lies beyond the last ordinate. The specular spread extrapolated
     // there (4 points), which put negative shares on the ordinates below the last: the BTDF read them back negative
     // between 8 and 12 degrees, returned 0 there, and integrated to 0.92 (16 ordinates) and 0.91 (32) where the
-    // transmittance is 0.743. Now the extrapolation carries only the share of the lobe the ordinates resolve (small
-    // here) and the last ordinate the rest: measured 0.793 against 0.741 (+7.0%) and 0.766 against 0.742 (+3.2%); what
-    // remains is the linear spread's cells near the pole, which do not carry the Gauss weights (README, known
-    // limitations; TabulatedBSDF::energy_error reports it).
+    // transmittance is 0.743. Then the extrapolation carried only the share of the lobe the ordinates resolve (small
+    // here) and the last ordinate the rest: 0.793 against 0.741 (+7.0%) and 0.766 against 0.742 (+3.2%), the linear
+    // spread's cell at the pole not carrying the Gauss weight (the last ordinate read flat from it to mu = 1). Now the
+    // spread above the last ordinate but one is linear to the last ordinate's value at mu = 1, at entry and exit alike:
+    // +1.7% and +1.4% (README, known limitations; TabulatedBSDF::energy_error reports it).
     const double pi = 3.141592653589793;
     const stratum::Quadrature<double> g = stratum::gauss_legendre<double>(24);  // per band of mu_o, and in dphi
     const double bands[] = {0, 0.5, 0.8, 0.95, 0.99, 1};
@@ -383,7 +384,7 @@ TEST_CASE("nearly specular rough faces lit at the normal: the BTDF integrates to
         }
         CAPTURE(m);
         CHECK(smallest > 0);
-        CHECK(integral / layer.transmittance(1) - 1 <= (m == 16 ? 0.08 : 0.04));
+        CHECK(integral / layer.transmittance(1) - 1 <= 0.02);
     }
 }
 

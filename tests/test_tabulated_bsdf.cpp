@@ -232,10 +232,11 @@ void check_chi_square(const TabulatedBSDF<double>& table, Vec3<double> wi, std::
 TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's fluxes, where they disagree too") {
     // Stam's skin: the layer's BRDF and BTDF integrate to its fluxes (measured 2.3e-5 at the nodes). Faces of RMS
     // slope 0.05 lit at the normal: the beam enters onto the last ordinate and leaves by interpolation near the
-    // pole, and the BTDF integrates to 0.793 where transmittance() is 0.741 (0.92 against 0.743, a white furnace of
-    // 1.10 in the table, before the spread stopped extrapolating beyond the last ordinate; renderer sweep); error(),
-    // the table against the layer's BTDF, cannot see it, energy_error() does (measured 0.052, at mu = 1). Strongly
-    // backward scattering (g = -0.95, README): 0.085.
+    // pole, and the BTDF integrates to 1.7% more than transmittance() (0.92 against 0.743, a white furnace of 1.10 in
+    // the table, before the spread stopped extrapolating beyond the last ordinate, renderer sweep; 0.793 against
+    // 0.741 before the spread's last cell reached to mu = 1); error(), the table against the layer's BTDF, cannot see
+    // it, energy_error() does (measured 0.012 at mu = 1; 0.052 before). Strongly backward scattering (g = -0.95,
+    // README): 0.085.
     const TabulatedBSDF<double> good(skin(), 1e-2);
     CHECK(good.energy_error() <= 1e-4);
     LayerOptions o;
@@ -244,9 +245,9 @@ TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's f
                                                       RoughDielectric<double>(0.05, 1.4, 1), o);
     const TabulatedBSDF<double> bad(narrow, 1e-2);
     const double gap = std::fabs(bad.albedo(1).transmittance - narrow.transmittance(1));
-    CHECK(gap > 0.03);
+    CHECK(gap > 0.008);
     CHECK(bad.energy_error() >= gap);
-    CHECK(bad.energy_error() <= gap + 2e-3);  // (the worst node is at or next to the normal: 0.0535 against 0.0527)
+    CHECK(bad.energy_error() <= gap + 2e-3);  // (the worst node is at or next to the normal)
     const TabulatedBSDF<double> backward(
         solve_layer(Slab<double>(1.0, -0.95, 1.0), SmoothDielectric<double>(1, 1.4), SmoothDielectric<double>(1.4, 1), o), 1e-2);
     CHECK(backward.energy_error() > 0.05);

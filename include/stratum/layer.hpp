@@ -1375,7 +1375,7 @@ private:
         }
         if (!(mu_t > 0)) return;
         const bool extrapolate = extrapolates(mu_t, top);
-        specular_spread(top, spread_point(mu_t, extrapolate), 2, ws, modes);
+        if (extrapolate) specular_spread(top, mu_t, 2, ws, modes); else specular_spread(top, mu_t, 2, ws, modes, true);
         if (top.rough() && mu_t > q_.nodes.back() && q_.size() >= 8) {  // (see extrapolates)
             std::swap(ws.in, ws.spread);  // the last ordinate's stencil, kept
             specular_spread(top, mu_t, 4, ws, modes);
@@ -1410,23 +1410,25 @@ private:
     // shadowing grow fast away from the normal, which the extrapolation carries to the pole: over 800 non-absorbing
     // layers at normal incidence (n 1.05 to 1.6, RMS slope 0.03 to 0.5, tau 0 and 1, 8 to 16 ordinates) R + T exceeds
     // 1 in 31 linearly (at most 1.0e-3, at 8 ordinates; 3.8e-6 from 9 on; none at 16) and in 111 from 4 points (5.1e-3).
-    // At the exit the last ordinate takes it, and under a rough top the
-    // spread's two stencils are blended by the lobe's share: the last ordinate by the specular share s (the share of a
+    // Above the last ordinate but one the spread, entering (beyond the last ordinate, where it does not extrapolate)
+    // and leaving alike, is linear from it to the last ordinate's value at mu = 1 (`pole`): the last ordinate read flat
+    // from itself to mu = 1 made its cell 21% larger in flux than its Gauss weight (at 16 ordinates; it does not shrink
+    // with M), and the BTDF of faces of RMS slope 0.05 lit at the normal, whose beam the last ordinate holds,
+    // integrated to 7.0% more than the transmittance at 16 ordinates and 3.2% at 32 (now 1.7% and 1.4%; at the exit
+    // alone reciprocity failed by 3.8e-2). Under a rough top the
+    // spread's two stencils are blended by the lobe's share: the last ordinate's by the specular share s (the share of a
     // lobe the ordinates do not resolve), the extrapolation (there from 4 points: the spread carries s of the flux, so
     // the extrapolation's weight is s (1 - s) <= 1/4; 2 points left the flux errors of 6 layers with rough tops of RMS
     // slope 0.05 to 0.3, at 8 to 24 ordinates, unchanged to 2 digits) by 1 - s. Extrapolated whole, its negative shares made the
     // field below the last ordinate negative for a beam through a nearly specular rough top (RMS slope 0.05, s ~ 1) at
     // normal incidence; the BTDF read it back negative between 8 and 12 degrees, returned 0 there (non_negative), and
-    // integrated to 0.92 (16 ordinates) and 0.91 (32) where the transmittance is 0.743 (now 0.793 and 0.766; found by
+    // integrated to 0.92 (16 ordinates) and 0.91 (32) where the transmittance is 0.743 (then 0.793 and 0.766; found by
     // the renderer sweep); in the random sweep of docs/accuracy.md (rough tops) R + T now stays below 1 + 1e-5 (1 and
     // 3 layers above 1 + 1e-3 before). The last ordinate alone (no blend) cost Stam's layer at 8 ordinates 1.2e-2 in
     // T at normal incidence (6.1e-3 extrapolated, 8.0e-3 blended) and made its TabulatedBSDF need 129 nodes at 1e-2
     // instead of 65 (the stencil's kink at the last ordinate's image; found when reviewing the change).
     bool extrapolates(Real x, const Face& face) const noexcept {
         return !face.rough() && x > q_.nodes.back() && q_.size() >= 8;
-    }
-    Real spread_point(Real x, bool extrapolate = false) const noexcept {
-        return extrapolate ? x : std::fmin(x, q_.nodes.back());
     }
 
     // The blend of a rough face's lobe with the specular spread, used where the lobe meets the ordinates (entry,
@@ -1455,7 +1457,7 @@ private:
     //  - ws.shape[k]: the azimuthal shape, I_k / I_0 of a rough face's lobe between mu and mu_t (so that its higher
     //    modes decay as the lobe's do: couplings() left its I_k in the last row of ws.row), or 1 for every k through
     //    a specular face (a delta in phi).
-    void specular_spread(const Face& face, Real x, int p, Workspace& ws, int modes) const {
+    void specular_spread(const Face& face, Real x, int p, Workspace& ws, int modes, bool pole = false) const {
         const std::size_t kk = static_cast<std::size_t>(modes);
         ws.shape.assign(kk, Real(1));
         if (face.rough()) {
@@ -1482,12 +1484,18 @@ private:
         // bounds it there, extrapolation would weigh the ordinates beyond 1 and below 0 (2.19 and -1.19 at 7
         // ordinates in a sweep, R + T = 1.30; 1.85 and -0.85 next to the face's own critical cosine, 1.19): the
         // nearest ordinate takes the beam there. Towards mu = 1 a beam entering through a specular top is extrapolated
-        // to (spread_point).
+        // to (entry); elsewhere above the last ordinate but one, with `pole`, linear to the last one's value at mu = 1.
         Real w[4] = {Real(1)};
         detail::LagrangeWindow window{lowest, 1};
         if (other > x && x >= q_.nodes[static_cast<std::size_t>(end - 1)]) window.first = end - 1;
-        else if (x > q_.nodes[static_cast<std::size_t>(lowest)])
-            window = detail::lagrange_weights(q_.nodes.data(), end, x, p, w, lowest);
+        else if (pole && p == 2 && end == m && m >= 2 && lowest <= m - 2 && x > q_.nodes[static_cast<std::size_t>(m - 2)]) {
+            const Real a = q_.nodes[static_cast<std::size_t>(m - 2)], t = std::fmin((x - a) / (1 - a), Real(1));
+            window = {m - 2, 2};
+            w[0] = 1 - t;
+            w[1] = t;
+        } else if (x > q_.nodes[static_cast<std::size_t>(lowest)]) {  // (with `pole`, never beyond the last ordinate)
+            window = detail::lagrange_weights(q_.nodes.data(), end, pole ? std::fmin(x, q_.nodes.back()) : x, p, w, lowest);
+        }
         ws.in.assign(q_.size(), Real(0));
         for (int a = 0; a < window.points; ++a) ws.in[static_cast<std::size_t>(window.first + a)] = w[a];
     }
@@ -1999,7 +2007,7 @@ private:
             specular = expected * blend(gauss, expected, ws.out);
         }
         if (!(specular > 0) || !(mu_t > 0)) return;
-        specular_spread(face, spread_point(mu_t), 2, ws, modes_);
+        specular_spread(face, mu_t, 2, ws, modes_, true);
         for (std::size_t i = 0; i < m; ++i) {
             Real pole = 1;
             const Real step = pole_factor(mu_t, q_.nodes[i]);
