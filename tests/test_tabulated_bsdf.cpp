@@ -928,6 +928,6 @@ TEST_CASE("TabulatedBSDF: exits near the horizon stay finite, and camera paths a
         }
         const auto a = table.albedo(z);
         CAPTURE(z);
-        CHECK(sum / n == doctest::Approx(a.reflectance + a.transmittance).epsilon(0.03));
+        CHECK(sum / n == doctest::Approx(a.reflectance + a.transmittance).epsilon(0.02));  // (measured 0.5% and 1.5%)
     }
 }

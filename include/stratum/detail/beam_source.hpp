@@ -20,8 +20,9 @@
 //     up   (leaving the top)    = Z+ - R Z- - T Z+ e^{-tau/x},
 //     down (leaving the bottom) = Z- e^{-tau/x} - T Z- - R Z+ e^{-tau/x}.
 // Resonance: 1/x = lambda_j makes Z infinite while the response stays finite (a secular term tau e^{-tau/x}).
-// Within a relative s = 4 sqrt(eps) of it (1e-4 in float: respond()) the response is interpolated linearly between
-// x (1 - 2s) and x (1 + 2s) (or extrapolated from x (1 - 2s) and x (1 - 4s) where x (1 + 2s) >= 1), mode k divided by
+// Within a relative s = 4 sqrt(eps) of it (in float too wide: README, known limitations) the response is
+// interpolated linearly between x (1 - 2s) and x (1 + 2s) (or extrapolated from x (1 - 2s) and x (1 - 4s) where
+// x (1 + 2s) is within (1 - x) / 2 of 1 or beyond: respond()), mode k divided by
 // sin^k(theta) (it is sin^k(theta) times a function smooth in x, which the interpolation then follows). The
 // interpolation costs O(s^2) times the
 // response's curvature (which reaches 4e2 relative near an ordinate, where the weakly scattering high modes have
