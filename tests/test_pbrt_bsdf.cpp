@@ -227,6 +227,15 @@ TEST_CASE("pbrt .bsdf: files pbrt-v3 would refuse are refused") {
         const AddressSpaceLimit limit(1ull << 30);  // (8.6 GB would not fit: std::bad_alloc, as under the old read)
         CHECK_THROWS_WITH_AS(read(bad), "stratum: pbrt .bsdf file: truncated", std::runtime_error);
     }
+    {
+        // nMu 4096 (the most accepted) in a file of its header and two cosines: "truncated" at the cosines, before the
+        // nMu^2 arrays (cdf, offsets, lengths: 200 MB) are allocated; they were sized first (found by a review sweep)
+        std::string header = good.substr(0, 72);
+        const std::int32_t most = 4096;
+        std::memcpy(&header[12], &most, 4);
+        const AddressSpaceLimit limit(64ull << 20);
+        CHECK_THROWS_WITH_AS(read(header), "stratum: pbrt .bsdf file: truncated", std::runtime_error);
+    }
     CHECK_THROWS_AS(read(good.substr(0, good.size() - 4)), std::runtime_error);  // truncated
     CHECK_THROWS_AS(read(good.substr(0, 30)), std::runtime_error);
     CHECK_THROWS_AS(read_pbrt_bsdf(std::string("/nonexistent/x.bsdf")), std::runtime_error);

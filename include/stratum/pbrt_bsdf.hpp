@@ -268,6 +268,20 @@ inline void get_bytes(std::istream& in, void* data, std::size_t n) {
     in.read(static_cast<char*>(data), static_cast<std::streamsize>(n));
     if (!in) throw std::runtime_error("stratum: pbrt .bsdf file: truncated");
 }
+// `count` values of 4 bytes appended to v in chunks of 2^20, so that a header claiming more than the file holds fails
+// at the file's end having allocated no more than it read (a 52-byte file claiming 2^31 - 1 coefficients allocated
+// 8.6 GB before "truncated", one of 64 bytes claiming nMu = 4096 about 200 MB; found by review sweeps).
+template <class T>
+void get_array(std::istream& in, std::vector<T>& v, std::size_t count) {
+    static_assert(sizeof(T) == 4, "the file's values are 4 bytes");
+    const std::size_t first = v.size(), chunk = std::size_t(1) << 20;
+    for (std::size_t done = 0; done < count;) {
+        const std::size_t step = std::min(chunk, count - done);
+        v.resize(first + done + step);
+        get_bytes(in, v.data() + first + done, 4 * step);
+        done += step;
+    }
+}
 inline bool little_endian() noexcept {
     const std::uint32_t one = 1;
     unsigned char c;
@@ -330,32 +344,23 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     t.channels = channels;
     t.eta = floats[0];
     const std::size_t nn = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
-    t.mu.resize(static_cast<std::size_t>(n));
-    t.cdf.resize(nn);
-    t.offset.resize(nn);
-    t.length.resize(nn);
-    detail::get_bytes(in, t.mu.data(), 4 * t.mu.size());
+    detail::get_array(in, t.mu, static_cast<std::size_t>(n));
     for (std::size_t j = 0; j < t.mu.size(); ++j)
         if (!(t.mu[j] >= -1 && t.mu[j] <= 1) || (j > 0 && !(t.mu[j] >= t.mu[j - 1])))
             throw std::runtime_error("stratum: pbrt .bsdf file: the cosines are not ascending in [-1, 1]");
-    detail::get_bytes(in, t.cdf.data(), 4 * nn);
+    detail::get_array(in, t.cdf, nn);
+    std::vector<std::int32_t> pairs;  // offset and length, interleaved
+    detail::get_array(in, pairs, 2 * nn);
+    t.offset.resize(nn);
+    t.length.resize(nn);
     for (std::size_t p = 0; p < nn; ++p) {
-        detail::get_bytes(in, &t.offset[p], 4);
-        detail::get_bytes(in, &t.length[p], 4);
+        t.offset[p] = pairs[2 * p];
+        t.length[p] = pairs[2 * p + 1];
         if (t.offset[p] < 0 || t.length[p] < 0 || t.length[p] > n_coeffs / channels ||
             t.offset[p] > n_coeffs - channels * t.length[p])
             throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
     }
-    // In chunks of 2^20, so that a header claiming more coefficients than the file holds fails at the file's end
-    // having allocated no more than it read (a 52-byte file claiming 2^31 - 1 allocated 8.6 GB before "truncated";
-    // found by a review sweep).
-    const std::size_t total = static_cast<std::size_t>(n_coeffs), chunk = std::size_t(1) << 20;
-    for (std::size_t done = 0; done < total;) {
-        const std::size_t count = std::min(chunk, total - done);
-        t.coeffs.resize(done + count);
-        detail::get_bytes(in, t.coeffs.data() + done, 4 * count);
-        done += count;
-    }
+    detail::get_array(in, t.coeffs, static_cast<std::size_t>(n_coeffs));
     return t;
 }
 inline PbrtBsdfTable read_pbrt_bsdf(const std::string& path) {
