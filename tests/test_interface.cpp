@@ -322,6 +322,23 @@ TEST_CASE("sample never produces NaN for any u in [0, 1)") {
     CHECK(bad == 0);
 }
 
+TEST_CASE("sample with a NaN or infinite wi gives a failed sample on every face, smooth and index-matched included") {
+    // (the delta branches returned a valid sample with a NaN direction, pdf 0.04 for a smooth 1 | 1.5 face and 1 for
+    // an index-matched one; found by a review sweep)
+    const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+    const Vec3<double> dirs[] = {{nan, 0, 1}, {0, nan, -1}, {inf, 0, 1}, {0, -inf, -0.5}, {0, 0, nan}, {0, 0, inf}};
+    for (double sigma : {0.0, 1e-9, 0.3})
+        for (double eta : {1.0, 1.5})
+            for (const auto& wi : dirs) {
+                const RoughDielectric<double> rd(sigma, 1.0, eta);
+                for (const stratum::TransportMode mode : {stratum::TransportMode::importance, stratum::TransportMode::radiance}) {
+                    const auto s = rd.sample(wi, 0.5, 0.5, 0.5, mode);
+                    CHECK(!s.valid());
+                    CHECK(s.pdf == 0);
+                }
+            }
+}
+
 TEST_CASE("brdf and btdf are facet_brdf / facet_btdf times shadowing_over_cosines, within 4 ulp") {
     // The factored form that InterfaceOperators evaluates (the shadowing computed once per pair of cosines) against
     // the whole evaluation, for every shadowing form, both sides, random directions (1e-3 < |z| < 1). Measured: at

@@ -379,6 +379,9 @@ private:
         // The horizon, and subnormal cosines: a delta sample's value 1 / |wo.z| would overflow (found by
         // fuzz_pointwise at wi.z = 2e-315); such directions carry no energy.
         if (!(std::fabs(wi.z) >= std::numeric_limits<Real>::min())) return out;
+        // (a NaN or infinite wi.x or wi.y: the delta branches below returned a valid sample with a NaN direction;
+        // found by a review sweep)
+        if (!all_finite(wi)) return out;
         const bool delta = index_matched() || smooth();
         const bool may_reflect = allows(allowed, true, delta), may_transmit = allows(allowed, false, delta);
         if (!may_reflect && !may_transmit) return out;
