@@ -1049,7 +1049,9 @@ class LayeredSurface {
 public:
     /// Scratch memory for evaluation (sized on first use).
     struct Workspace {
-        std::vector<Real> in, out, c, field, shape, row, row_all, spread;
+        std::vector<Real> in, out, c, field, shape, row, row_all, spread, first;
+        Real c_mu = -1;  // the incidence whose entry ws.c holds (entry()), and its modes
+        int c_modes = 0;
         // between specular faces (the beam as a source): the field of an incidence computed on the fly, the slab's
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
@@ -1118,7 +1120,18 @@ public:
         if (beam_) return beam_radiance(wi, wo, true, ws);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
-        return scale * exit_sum(wi, wo, bottom_face(), field(mu_i, true, ws), ws);
+        const Real* fld = field(mu_i, true, ws);
+        if (!first_pass_exact_) return scale * exit_sum(wi, wo, bottom_face(), fld, ws);
+        // (scale is 1 here: the beam is kept apart only between specular faces)
+        const Real mu_o = std::fmin(std::fabs(wo.z), Real(1));
+        exit_weights(mu_o, bottom_face(), ws);
+        if (!(ws.c_mu == mu_i && ws.c_modes == modes_)) entry(mu_i, ws);  // (a cached field computed no entry)
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
+        ws.small.assign(kk, Real(0));
+        first_pass_correction(mu_i, mu_o, ws.out.data(), ws, ws.small.data());
+        for (std::size_t k = 0; k < kk; ++k)
+            for (std::size_t i = 0; i < m; ++i) ws.small[k] += ws.out[k * m + i] * fld[k * m + i];
+        return non_negative(mode_sum(wi, wo, ws.small.data()));
     }
     Real btdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return btdf(wi, wo, ws); }
 
@@ -1365,6 +1378,8 @@ private:
         const Face top = top_face();
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes);
         ws.c.assign(kk * m, Real(0));
+        ws.c_mu = mu_i;
+        ws.c_modes = modes;
         const Real flux = top.transmittance_from_outside(mu_i);
         if (!(flux > 0)) return;
         Real specular_share = 1;
@@ -1556,6 +1571,60 @@ private:
         pole = !(ri > 0) || !(ro > 0);
         return pole ? Real(1)
                     : std::fmin(std::fmax(-((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro)), Real(-1)), Real(1));
+    }
+
+    // sum_k a_k cos(k dphi), dphi the azimuth between -wi and wo (mode 0 alone at the pole).
+    Real mode_sum(Vec3<Real> wi, Vec3<Real> wo, const Real* a) const {
+        bool pole = false;
+        const Real cos_dphi = azimuth_cosine(wi, wo, pole);
+        Real sum = 0, c_prev = 1, c_k = 1;  // cos(k dphi) by the Chebyshev recurrence
+        const int modes = pole ? std::min(modes_, 1) : modes_;
+        for (int k = 0; k < modes; ++k) {
+            sum += c_k * a[k];
+            const Real c_next = k == 0 ? cos_dphi : 2 * cos_dphi * c_k - c_prev;
+            c_prev = c_k;
+            c_k = c_next;
+        }
+        return sum;
+    }
+
+    // A rough face over a specular one, or a specular over a rough one (first_pass_exact_): the light let in that
+    // crosses the slabs unscattered once and leaves through the bottom. The discrete solution holds it on the
+    // ordinates (the entry c times e^{-tau/mu_m}) and reads it out at the exit cosine by the exit's weights; a lobe
+    // narrower than the ordinate spacing near the normal came out inflated: lit at the normal under a rough top over
+    // a smooth bottom, the BTDF integrated to 1.25 times the transmittance at 16 ordinates for RMS slope 0.3 and 1.81
+    // times for 0.1 (found by review); a smooth top over a nearly specular rough bottom, 1.57 times. Exactly, under a
+    // rough top it is the top's BTDF towards the exit's Snell direction inside, mu', times e^{-tau'/mu'} and the
+    // bottom's radiance transmittance there; under a specular top the beam's share let in, T_12(mu_i), times
+    // e^{-tau'/mu_t} at its Snell cosine mu_t and the bottom's BTDF from there (tau' the delta-M scaled thickness: the
+    // solve's own unscattered light, whose fluxes it keeps). The two are reciprocal. Per mode k, into delta[k]
+    // (added): the exact first pass minus the discrete one, from the exit weights at mu_o (exit_w, as exit_weights
+    // gives them) and the entry at mu_i in ws.c (entry()).
+    void first_pass_correction(Real mu_i, Real mu_o, const Real* exit_w, Workspace& ws, Real* delta) const {
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
+        for (std::size_t i = 0; i < m; ++i) {
+            const Real d = std::exp(-first_pass_tau_ / q_.nodes[i]);
+            for (std::size_t k = 0; k < kk; ++k) delta[k] -= exit_w[k * m + i] * d * ws.c[k * m + i];
+        }
+        const Face top = top_face(), bottom = bottom_face();
+        ws.first.assign(kk, Real(0));
+        Real through = 0;
+        if (top.rough()) {
+            const Real mu_t = bottom.internal_cosine(mu_o);
+            if (!(mu_t > 0)) return;
+            through = bottom.boundary().smooth_interface().radiance_transmittance(bottom.from_inside(mu_t)) *
+                      std::exp(-first_pass_tau_ / mu_t);
+            if (!(through > 0)) return;
+            top.transmission(Crossing::entering, mu_i, mu_t, ws.first.data(), modes_);
+        } else {
+            const Real mu_t = top.internal_cosine(mu_i);
+            if (!(mu_t > 0)) return;
+            through = top.transmittance_from_outside(mu_i) * std::exp(-first_pass_tau_ / mu_t);
+            if (!(through > 0)) return;
+            bottom.transmission(Crossing::leaving, mu_o, mu_t, ws.first.data(), modes_);
+        }
+        for (std::size_t k = 0; k < kk; ++k)
+            delta[k] += through * ws.first[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
     }
 
     // Radiance leaving through `face` towards wo from the internal field, summed over modes.
@@ -2127,6 +2196,8 @@ private:
     std::vector<Real> cached_surface_;                    // per requested incidence: the top's reflectance
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
+    bool first_pass_exact_ = false;  // one face rough, the other specular: the BTDF's first pass exact (first_pass_correction)
+    Real first_pass_tau_ = 0;        // the slabs' delta-M scaled thickness, which that pass crosses
     bool aliased_ = false;  // a slab's phase function was aliased on the ordinates (regularized: slab.hpp)
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled), as solved
     Real beam_tau_ = 0;                                   // the slab's true optical thickness
@@ -2467,6 +2538,16 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                       (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs) ||
                        includes(request.outputs, LayerOutput::ambient) || !request.depths.empty());
     if (beam) s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
+    // A rough top over a specular bottom or a specular top over a rough one, slabs joined by index-matched faces: the
+    // BTDF's unscattered first pass exact at its angle (first_pass_correction).
+    bool matched_joints = true;
+    for (const Boundary<Real>& b : interior)
+        matched_joints = matched_joints && !b.rough() && !b.lambertian() && b.eta_above() == b.eta_below();
+    if (top.rough() != bottom.rough() && !top.lambertian() && !bottom.lambertian() && matched_joints &&
+        includes(request.outputs, LayerOutput::transmission)) {
+        s.first_pass_exact_ = true;
+        for (const detail::SlabModes<Real>& slab : stack.slabs) s.first_pass_tau_ += slab.slab.optical_thickness();
+    }
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     // A rule split at refracting joints (layer_quadrature) integrates a peaked phase function less exactly than one
     // half-range rule; where it aliases it, the beam would be spread over the ordinates and the unscattered beam
@@ -3291,15 +3372,19 @@ std::vector<Real> LayeredSurface<Real>::fourier_coefficients(LayerOutput which, 
         exit_weights(mu_o[b], face, ws);
         std::copy(ws.out.begin(), ws.out.end(), exits.begin() + static_cast<std::ptrdiff_t>(b * kk * m));
     }
+    const bool first_pass = transmitted && first_pass_exact_;
     for (std::size_t a = 0; a < mu_i.size(); ++a) {
         if (!(mu_i[a] > 0)) continue;
         const Real scale = scattering_scale(mu_i[a], ws);
         const Real* fld = field(mu_i[a], transmitted, ws);
+        if (first_pass && !(ws.c_mu == mu_i[a] && ws.c_modes == modes_)) entry(mu_i[a], ws);  // (as btdf)
         for (std::size_t b = 0; b < no; ++b) {
             const Real* w = exits.data() + b * kk * m;
             Real* a_k = out.data() + (a * no + b) * kk;
+            std::fill(a_k, a_k + kk, Real(0));
+            if (first_pass && mu_o[b] > 0) first_pass_correction(mu_i[a], mu_o[b], w, ws, a_k);
             for (std::size_t k = 0; k < kk; ++k) {
-                Real s = 0;
+                Real s = a_k[k];
                 for (std::size_t i = 0; i < m; ++i) s += w[k * m + i] * fld[k * m + i];
                 a_k[k] = scale * mu_o[b] * s;
             }
