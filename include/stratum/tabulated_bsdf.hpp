@@ -190,9 +190,8 @@ struct AzimuthSample {
 // rounding; the caller evaluates pdf at the phi returned, so a residual moves the sample, never the density it
 // reports). A step from a residual below 1e-6 c_0 pi is taken without evaluating G where it lands: cubic convergence
 // leaves ~1e-18 there, and the evaluation that would confirm it was a third of the sampler's time (3 evaluations for
-// most samples, 2 now; over 150 000 series, peaked, flat and alternating, the worst residual stayed 3.7e-11 c_0 pi).
-// Where the truncated series dips below 0 the CDF is not monotone; bisection keeps G(lo) <= target < G(hi), so the
-// bracket still holds a root, and the caller's pdf (the clamped g) tells the truth.
+// most samples, 2 now; over 150 000 series, peaked, flat and alternating, the worst residual stayed 3.7e-11 c_0 pi). Where the truncated series dips below 0 the CDF is not monotone; bisection keeps
+// G(lo) <= target < G(hi), so the bracket still holds a root, and the caller's pdf (the clamped g) tells the truth.
 template <class Real>
 AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexcept {
     const Real pi = pi_v<Real>, target = u * c[0] * pi;
