@@ -1050,8 +1050,6 @@ public:
     /// Scratch memory for evaluation (sized on first use).
     struct Workspace {
         std::vector<Real> in, out, c, field, shape, row, row_all, spread, first;
-        Real c_mu = -1;  // the incidence whose entry ws.c holds (entry()), and its modes
-        int c_modes = 0;
         // between specular faces (the beam as a source): the field of an incidence computed on the fly, the slab's
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
@@ -1106,7 +1104,9 @@ public:
         if (beam_) return beam_radiance(wi, wo, false, ws);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
-        return scale * exit_sum(wi, wo, top_face(), field(mu_i, false, ws), ws);
+        if (!first_reflection_exact_) return scale * exit_sum(wi, wo, top_face(), field(mu_i, false, ws), ws);
+        // (scale is 1 here: the beam is kept apart only between specular faces)
+        return non_negative(with_exact_pass(wi, wo, false, ws));
     }
     Real subsurface_brdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return subsurface_brdf(wi, wo, ws); }
 
@@ -1120,18 +1120,9 @@ public:
         if (beam_) return beam_radiance(wi, wo, true, ws);
         const Real mu_i = std::fmin(wi.z, Real(1));
         const Real scale = scattering_scale(mu_i, ws);
-        const Real* fld = field(mu_i, true, ws);
-        if (!first_pass_exact_) return scale * exit_sum(wi, wo, bottom_face(), fld, ws);
+        if (!first_pass_exact_) return scale * exit_sum(wi, wo, bottom_face(), field(mu_i, true, ws), ws);
         // (scale is 1 here: the beam is kept apart only between specular faces)
-        const Real mu_o = std::fmin(std::fabs(wo.z), Real(1));
-        exit_weights(mu_o, bottom_face(), ws);
-        if (!(ws.c_mu == mu_i && ws.c_modes == modes_)) entry(mu_i, ws);  // (a cached field computed no entry)
-        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
-        ws.small.assign(kk, Real(0));
-        first_pass_correction(mu_i, mu_o, ws.out.data(), ws, ws.small.data());
-        for (std::size_t k = 0; k < kk; ++k)
-            for (std::size_t i = 0; i < m; ++i) ws.small[k] += ws.out[k * m + i] * fld[k * m + i];
-        return non_negative(mode_sum(wi, wo, ws.small.data()));
+        return non_negative(with_exact_pass(wi, wo, true, ws));
     }
     Real btdf(Vec3<Real> wi, Vec3<Real> wo) const { Workspace ws; return btdf(wi, wo, ws); }
 
@@ -1346,10 +1337,19 @@ private:
     // agree with the full call's to 2.3e-13 for the transmission used here, measured); a cached field holds all modes.
     const Real* field(Real mu_i, bool transmitted, Workspace& ws, int modes = -1) const {
         if (modes < 0) modes = modes_;
+        if (const Real* cached = cached_field(mu_i, transmitted)) return cached;
+        entry(mu_i, ws, modes);
+        return field_of_entry(transmitted, ws, modes);
+    }
+    // The field of a requested incidence, kept from the solve (all modes), or null.
+    const Real* cached_field(Real mu_i, bool transmitted) const noexcept {
         const std::vector<std::vector<Real>>& cache = transmitted ? cached_e_ : cached_b_;
         for (std::size_t j = 0; j < incidence_.size(); ++j)
             if (incidence_[j] == mu_i && !cache[j].empty()) return cache[j].data();
-        entry(mu_i, ws, modes);
+        return nullptr;
+    }
+    // The field of the entry in ws.c (entry()), first `modes` modes.
+    const Real* field_of_entry(bool transmitted, Workspace& ws, int modes) const {
         const std::size_t m = q_.size();
         ws.field.assign(static_cast<std::size_t>(modes) * m, Real(0));
         const std::vector<detail::Matrix<Real>>& q = transmitted ? qe_ : qb_;
@@ -1378,8 +1378,6 @@ private:
         const Face top = top_face();
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes);
         ws.c.assign(kk * m, Real(0));
-        ws.c_mu = mu_i;
-        ws.c_modes = modes;
         const Real flux = top.transmittance_from_outside(mu_i);
         if (!(flux > 0)) return;
         Real specular_share = 1;
@@ -1588,43 +1586,112 @@ private:
         return sum;
     }
 
-    // A rough face over a specular one, or a specular over a rough one (first_pass_exact_): the light let in that
-    // crosses the slabs unscattered once and leaves through the bottom. The discrete solution holds it on the
-    // ordinates (the entry c times e^{-tau/mu_m}) and reads it out at the exit cosine by the exit's weights; a lobe
-    // narrower than the ordinate spacing near the normal came out inflated: lit at the normal under a rough top over
-    // a smooth bottom, the BTDF integrated to 1.25 times the transmittance at 16 ordinates for RMS slope 0.3 and 1.81
-    // times for 0.1 (found by review); a smooth top over a nearly specular rough bottom, 1.57 times. Exactly, under a
-    // rough top it is the top's BTDF towards the exit's Snell direction inside, mu', times e^{-tau'/mu'} and the
-    // bottom's radiance transmittance there; under a specular top the beam's share let in, T_12(mu_i), times
-    // e^{-tau'/mu_t} at its Snell cosine mu_t and the bottom's BTDF from there (tau' the delta-M scaled thickness: the
-    // solve's own unscattered light, whose fluxes it keeps). The two are reciprocal. Per mode k, into delta[k]
-    // (added): the exact first pass minus the discrete one, from the exit weights at mu_o (exit_w, as exit_weights
-    // gives them) and the entry at mu_i in ws.c (entry()).
-    void first_pass_correction(Real mu_i, Real mu_o, const Real* exit_w, Workspace& ws, Real* delta) const {
+    // One face rough and the other specular (first_pass_exact_, first_reflection_exact_): the light let in that crosses
+    // the slabs unscattered and leaves through the bottom (under either top) or, reflected once by a rough bottom,
+    // through a specular top. The solution on the ordinates holds it as D c (D the slabs' e^{-tau'/mu_m}, c the entry)
+    // or D R_23 D c (R_23 the bottom's reflection operator) and the exit reads it out between the ordinates: a lobe
+    // narrower than their spacing near the normal came out inflated (lit at the normal under a rough 0.3 top over a
+    // smooth bottom, the BTDF integrated to 1.25 times the transmittance at 16 ordinates, 1.81 for slope 0.1; a
+    // smooth top over a rough 0.05 bottom 1.61, and its BRDF 18% off the BRDF at 96 ordinates; found by review).
+    // brdf and btdf take that pass out of the solution's modes and add it exactly at (wi, wo) (exact_pass), as a
+    // value, not a Fourier series: a lobe narrow in azimuth needs more modes than the solve has, and cut to them it
+    // rang (at 1 | 1.05, slope 0.1, 88 degrees off the lobe 4.3 where the truth is 0.25; found by the next review).
+    // fourier_coefficients has no choice but the series (exact_pass_modes): there such a lobe rings.
+    Real with_exact_pass(Vec3<Real> wi, Vec3<Real> wo, bool transmitted, Workspace& ws) const {
+        const Real mu_i = std::fmin(wi.z, Real(1)), mu_o = std::fmin(std::fabs(wo.z), Real(1));
+        entry(mu_i, ws);  // (always: the pass's part of the solution needs it, and a cached field keeps none)
+        const Real* fld = cached_field(mu_i, transmitted);
+        if (!fld) fld = field_of_entry(transmitted, ws, modes_);
+        exit_weights(mu_o, transmitted ? bottom_face() : top_face(), ws);
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
-        for (std::size_t i = 0; i < m; ++i) {
-            const Real d = std::exp(-first_pass_tau_ / q_.nodes[i]);
-            for (std::size_t k = 0; k < kk; ++k) delta[k] -= exit_w[k * m + i] * d * ws.c[k * m + i];
-        }
-        const Face top = top_face(), bottom = bottom_face();
-        ws.first.assign(kk, Real(0));
-        Real through = 0;
-        if (top.rough()) {
-            const Real mu_t = bottom.internal_cosine(mu_o);
-            if (!(mu_t > 0)) return;
-            through = bottom.boundary().smooth_interface().radiance_transmittance(bottom.from_inside(mu_t)) *
-                      std::exp(-first_pass_tau_ / mu_t);
-            if (!(through > 0)) return;
-            top.transmission(Crossing::entering, mu_i, mu_t, ws.first.data(), modes_);
-        } else {
-            const Real mu_t = top.internal_cosine(mu_i);
-            if (!(mu_t > 0)) return;
-            through = top.transmittance_from_outside(mu_i) * std::exp(-first_pass_tau_ / mu_t);
-            if (!(through > 0)) return;
-            bottom.transmission(Crossing::leaving, mu_o, mu_t, ws.first.data(), modes_);
-        }
+        ws.small.assign(kk, Real(0));
+        subtract_discrete_pass(transmitted, ws.out.data(), ws, ws.small.data());
         for (std::size_t k = 0; k < kk; ++k)
-            delta[k] += through * ws.first[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
+            for (std::size_t i = 0; i < m; ++i) ws.small[k] += ws.out[k * m + i] * fld[k * m + i];
+        return mode_sum(wi, wo, ws.small.data()) + exact_pass(wi, wo, transmitted);
+    }
+
+    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w (the entry in ws.c).
+    void subtract_discrete_pass(bool transmitted, const Real* exit_w, Workspace& ws, Real* delta) const {
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
+        ws.first.assign(m, Real(0));
+        for (std::size_t k = 0; k < kk; ++k) {
+            const Real* c = ws.c.data() + k * m;
+            if (transmitted) {
+                for (std::size_t n = 0; n < m; ++n) ws.first[n] = std::exp(-first_pass_tau_ / q_.nodes[n]) * c[n];
+            } else {
+                const Real* r = bottom_ops_->R12().mode(static_cast<int>(k));  // (row n out, column i in)
+                for (std::size_t n = 0; n < m; ++n) {
+                    Real sum = 0;
+                    for (std::size_t i = 0; i < m; ++i) sum += r[n * m + i] * std::exp(-first_pass_tau_ / q_.nodes[i]) * c[i];
+                    ws.first[n] = std::exp(-first_pass_tau_ / q_.nodes[n]) * sum;
+                }
+            }
+            for (std::size_t n = 0; n < m; ++n) delta[k] -= exit_w[k * m + n] * ws.first[n];
+        }
+    }
+
+    // The pass's geometry: the light let in (T_12(mu_i), or 1 under a rough top, whose BTDF carries it) times its
+    // attenuation, and the direction inside at which a rough face meets it; the cosines mu_t of wi's Snell direction
+    // and mu_e of wo's inside. With `rough_top`, the pass through the bottom's specular face at mu_e (its radiance
+    // transmittance included in `through`).
+    struct PassGeometry {
+        Real through = 0, mu_t = 0, mu_e = 0;
+    };
+    PassGeometry pass_geometry(Real mu_i, Real mu_o, bool transmitted) const {
+        const Face top = top_face(), bottom = bottom_face();
+        PassGeometry p;
+        if (transmitted && top.rough()) {
+            p.mu_e = bottom.internal_cosine(mu_o);
+            if (!(p.mu_e > 0)) return {};
+            p.through = bottom.boundary().smooth_interface().radiance_transmittance(bottom.from_inside(p.mu_e)) *
+                        std::exp(-first_pass_tau_ / p.mu_e);
+            return p;
+        }
+        p.mu_t = top.internal_cosine(mu_i);
+        if (!(p.mu_t > 0)) return {};
+        p.through = top.transmittance_from_outside(mu_i) * std::exp(-first_pass_tau_ / p.mu_t);
+        if (transmitted) return p;
+        p.mu_e = top.internal_cosine(mu_o);
+        if (!(p.mu_e > 0)) return {};
+        p.through *= top.boundary().smooth_interface().radiance_transmittance(top.from_inside(p.mu_e)) *
+                     std::exp(-first_pass_tau_ / p.mu_e);
+        return p;
+    }
+
+    // The exact pass at (wi, wo): under a rough top its BTDF towards wo's Snell direction inside, times that
+    // direction's attenuation and the bottom's radiance transmittance; under a specular top T_12(mu_i) e^{-tau'/mu_t}
+    // times the bottom's BTDF from wi's Snell direction inside to wo, or for reflection its BRDF from there to wo's
+    // Snell direction inside, times e^{-tau'/mu_e} and the top's radiance transmittance (tau' the delta-M scaled
+    // thickness: the solution's own unscattered light, whose fluxes stay as solved).
+    Real exact_pass(Vec3<Real> wi, Vec3<Real> wo, bool transmitted) const {
+        const Real mu_i = std::fmin(wi.z, Real(1)), mu_o = std::fmin(std::fabs(wo.z), Real(1));
+        const PassGeometry p = pass_geometry(mu_i, mu_o, transmitted);
+        if (!(p.through > 0)) return Real(0);
+        // the direction inside with cosine c (its sign z) and the azimuth of v's horizontal part (x when v has none)
+        const auto inside = [](Vec3<Real> v, Real c, Real z) {
+            const Real h = std::sqrt(v.x * v.x + v.y * v.y), s = std::sqrt(std::fmax(Real(0), (1 - c) * (1 + c)));
+            return h > 0 ? Vec3<Real>{v.x / h * s, v.y / h * s, z} : Vec3<Real>{s, Real(0), z};
+        };
+        if (transmitted && top_.rough())  // wo's direction of travel inside, continued
+            return p.through * top_.rough_interface()->btdf(wi, inside(wo, p.mu_e, -p.mu_e));
+        const Vec3<Real> from = inside(wi, p.mu_t, p.mu_t);  // towards the light, above the bottom face
+        if (transmitted) return p.through * bottom_.rough_interface()->btdf(from, wo);
+        return p.through * bottom_.rough_interface()->brdf(from, inside(wo, p.mu_e, p.mu_e));
+    }
+
+    // delta[k] += the exact pass's Fourier coefficients at (mu_i, mu_o): (2 - delta_k0) / (2 pi) times the rough face's
+    // azimuthal integrals I_k (section 5 of docs/physics.md) times the pass's geometry, cut to the solve's modes.
+    void add_exact_pass_modes(Real mu_i, Real mu_o, bool transmitted, Workspace& ws, Real* delta) const {
+        const std::size_t kk = static_cast<std::size_t>(modes_);
+        const PassGeometry p = pass_geometry(mu_i, mu_o, transmitted);
+        if (!(p.through > 0)) return;
+        ws.first.assign(kk, Real(0));
+        if (transmitted && top_face().rough()) top_face().transmission(Crossing::entering, mu_i, p.mu_e, ws.first.data(), modes_);
+        else if (transmitted) bottom_face().transmission(Crossing::leaving, mu_o, p.mu_t, ws.first.data(), modes_);
+        else bottom_ops_->coefficients(Incidence::from_above, false, p.mu_t, p.mu_e, ws.first.data(), modes_);
+        for (std::size_t k = 0; k < kk; ++k)
+            delta[k] += p.through * ws.first[k] * (k == 0 ? Real(1) : Real(2)) / (2 * detail::pi_v<Real>);
     }
 
     // Radiance leaving through `face` towards wo from the internal field, summed over modes.
@@ -2196,8 +2263,9 @@ private:
     std::vector<Real> cached_surface_;                    // per requested incidence: the top's reflectance
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
-    bool first_pass_exact_ = false;  // one face rough, the other specular: the BTDF's first pass exact (first_pass_correction)
-    Real first_pass_tau_ = 0;        // the slabs' delta-M scaled thickness, which that pass crosses
+    bool first_pass_exact_ = false;  // one face rough, the other specular: the BTDF's first pass exact (with_exact_pass)
+    bool first_reflection_exact_ = false;  // a specular top over a rough bottom: the BRDF's pass reflected once by it exact
+    Real first_pass_tau_ = 0;        // the slabs' delta-M scaled thickness, which those passes cross
     bool aliased_ = false;  // a slab's phase function was aliased on the ordinates (regularized: slab.hpp)
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled), as solved
     Real beam_tau_ = 0;                                   // the slab's true optical thickness
@@ -2539,15 +2607,20 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
                        includes(request.outputs, LayerOutput::ambient) || !request.depths.empty());
     if (beam) s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
     // A rough top over a specular bottom or a specular top over a rough one, slabs joined by index-matched faces: the
-    // BTDF's unscattered first pass exact at its angle (first_pass_correction).
+    // BTDF's unscattered first pass exact at its angle (with_exact_pass).
     bool matched_joints = true;
     for (const Boundary<Real>& b : interior)
         matched_joints = matched_joints && !b.rough() && !b.lambertian() && b.eta_above() == b.eta_below();
     if (top.rough() != bottom.rough() && !top.lambertian() && !bottom.lambertian() && matched_joints &&
         includes(request.outputs, LayerOutput::transmission)) {
         s.first_pass_exact_ = true;
-        for (const detail::SlabModes<Real>& slab : stack.slabs) s.first_pass_tau_ += slab.slab.optical_thickness();
     }
+    // and a specular top over a rough bottom: the BRDF's pass reflected once by the bottom (with_exact_pass)
+    if (!top.rough() && !top.lambertian() && bottom.rough() && matched_joints &&
+        includes(request.outputs, LayerOutput::subsurface_reflection))
+        s.first_reflection_exact_ = true;
+    if (s.first_pass_exact_ || s.first_reflection_exact_)
+        for (const detail::SlabModes<Real>& slab : stack.slabs) s.first_pass_tau_ += slab.slab.optical_thickness();
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     // A rule split at refracting joints (layer_quadrature) integrates a peaked phase function less exactly than one
     // half-range rule; where it aliases it, the beam would be spread over the ordinates and the unscattered beam
@@ -3374,17 +3447,26 @@ std::vector<Real> LayeredSurface<Real>::fourier_coefficients(LayerOutput which, 
         exit_weights(mu_o[b], face, ws);
         std::copy(ws.out.begin(), ws.out.end(), exits.begin() + static_cast<std::ptrdiff_t>(b * kk * m));
     }
-    const bool first_pass = transmitted && first_pass_exact_;
+    const bool exact_pass = transmitted ? first_pass_exact_ : first_reflection_exact_;
     for (std::size_t a = 0; a < mu_i.size(); ++a) {
         if (!(mu_i[a] > 0)) continue;
         const Real scale = scattering_scale(mu_i[a], ws);
-        const Real* fld = field(mu_i[a], transmitted, ws);
-        if (first_pass && !(ws.c_mu == mu_i[a] && ws.c_modes == modes_)) entry(mu_i[a], ws);  // (as btdf)
+        const Real* fld = nullptr;
+        if (exact_pass) {  // (the entry kept for the pass: with_exact_pass)
+            entry(mu_i[a], ws);
+            fld = cached_field(mu_i[a], transmitted);
+            if (!fld) fld = field_of_entry(transmitted, ws, modes_);
+        } else {
+            fld = field(mu_i[a], transmitted, ws);
+        }
         for (std::size_t b = 0; b < no; ++b) {
             const Real* w = exits.data() + b * kk * m;
             Real* a_k = out.data() + (a * no + b) * kk;
             std::fill(a_k, a_k + kk, Real(0));
-            if (first_pass && mu_o[b] > 0) first_pass_correction(mu_i[a], mu_o[b], w, ws, a_k);
+            if (exact_pass && mu_o[b] > 0) {
+                subtract_discrete_pass(transmitted, w, ws, a_k);
+                add_exact_pass_modes(mu_i[a], mu_o[b], transmitted, ws, a_k);
+            }
             for (std::size_t k = 0; k < kk; ++k) {
                 Real s = a_k[k];
                 for (std::size_t i = 0; i < m; ++i) s += w[k * m + i] * fld[k * m + i];
