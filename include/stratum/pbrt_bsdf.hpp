@@ -349,16 +349,19 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
         if (!(t.mu[j] >= -1 && t.mu[j] <= 1) || (j > 0 && !(t.mu[j] >= t.mu[j - 1])))
             throw std::runtime_error("stratum: pbrt .bsdf file: the cosines are not ascending in [-1, 1]");
     detail::get_array(in, t.cdf, nn);
-    std::vector<std::int32_t> pairs;  // offset and length, interleaved
-    detail::get_array(in, pairs, 2 * nn);
-    t.offset.resize(nn);
-    t.length.resize(nn);
-    for (std::size_t p = 0; p < nn; ++p) {
-        t.offset[p] = pairs[2 * p];
-        t.length[p] = pairs[2 * p + 1];
-        if (t.offset[p] < 0 || t.length[p] < 0 || t.length[p] > n_coeffs / channels ||
-            t.offset[p] > n_coeffs - channels * t.length[p])
-            throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
+    std::vector<std::int32_t> pairs;  // offset and length, interleaved, a chunk at a time (no second copy of all)
+    for (std::size_t done = 0; done < nn;) {
+        const std::size_t step = std::min(std::size_t(1) << 19, nn - done);
+        pairs.clear();
+        detail::get_array(in, pairs, 2 * step);
+        for (std::size_t p = 0; p < step; ++p) {
+            const std::int32_t offset = pairs[2 * p], length = pairs[2 * p + 1];
+            if (offset < 0 || length < 0 || length > n_coeffs / channels || offset > n_coeffs - channels * length)
+                throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
+            t.offset.push_back(offset);
+            t.length.push_back(length);
+        }
+        done += step;
     }
     detail::get_array(in, t.coeffs, static_cast<std::size_t>(n_coeffs));
     return t;
