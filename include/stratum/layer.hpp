@@ -1599,24 +1599,35 @@ private:
     // fourier_coefficients has no choice but the series (exact_pass_modes): there such a lobe rings.
     Real with_exact_pass(Vec3<Real> wi, Vec3<Real> wo, bool transmitted, Workspace& ws) const {
         const Real mu_i = std::fmin(wi.z, Real(1)), mu_o = std::fmin(std::fabs(wo.z), Real(1));
-        entry(mu_i, ws);  // (always: the pass's part of the solution needs it, and a cached field keeps none)
-        const Real* fld = cached_field(mu_i, transmitted);
-        if (!fld) fld = field_of_entry(transmitted, ws, modes_);
+        const Real* fld = nullptr;
+        const Real* c = entry_and_field(mu_i, transmitted, ws, fld);
         exit_weights(mu_o, transmitted ? bottom_face() : top_face(), ws);
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.small.assign(kk, Real(0));
-        subtract_discrete_pass(transmitted, ws.out.data(), ws, ws.small.data());
+        subtract_discrete_pass(transmitted, ws.out.data(), c, ws, ws.small.data());
         for (std::size_t k = 0; k < kk; ++k)
             for (std::size_t i = 0; i < m; ++i) ws.small[k] += ws.out[k * m + i] * fld[k * m + i];
         return mode_sum(wi, wo, ws.small.data()) + exact_pass(wi, wo, transmitted);
     }
 
-    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w (the entry in ws.c).
-    void subtract_discrete_pass(bool transmitted, const Real* exit_w, Workspace& ws, Real* delta) const {
+    // The entry at mu_i (returned) and the field (into fld), both kept from the solve for a requested incidence, else
+    // computed (the entry into ws.c). (The entry is computed every time it is not kept: a key in the Workspace naming
+    // the entry it held went stale after ambient() or another layer's call; found by review.)
+    const Real* entry_and_field(Real mu_i, bool transmitted, Workspace& ws, const Real*& fld) const {
+        fld = cached_field(mu_i, transmitted);
+        for (std::size_t j = 0; j < incidence_.size() && fld; ++j)
+            if (incidence_[j] == mu_i && j < cached_c_.size() && !cached_c_[j].empty()) return cached_c_[j].data();
+        entry(mu_i, ws);
+        if (!fld) fld = field_of_entry(transmitted, ws, modes_);
+        return ws.c.data();
+    }
+
+    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w, from the entry `entry`.
+    void subtract_discrete_pass(bool transmitted, const Real* exit_w, const Real* entry, Workspace& ws, Real* delta) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.first.assign(m, Real(0));
         for (std::size_t k = 0; k < kk; ++k) {
-            const Real* c = ws.c.data() + k * m;
+            const Real* c = entry + k * m;
             if (transmitted) {
                 for (std::size_t n = 0; n < m; ++n) ws.first[n] = std::exp(-first_pass_tau_ / q_.nodes[n]) * c[n];
             } else {
@@ -2260,6 +2271,7 @@ private:
     std::vector<ComponentOperators<Real>> whole_;         // per mode, if requested
     std::vector<Real> incidence_;
     std::vector<std::vector<Real>> cached_b_, cached_e_;  // per requested incidence: K blocks of M
+    std::vector<std::vector<Real>> cached_c_;  // and its entry, where the exact pass needs it (with_exact_pass)
     std::vector<Real> cached_surface_;                    // per requested incidence: the top's reflectance
     std::vector<Real> exit_top_, exit_bottom_;            // hemispherical transmittance out of the layer per ordinate
     bool direct_separated_ = false;                       // specular top and bottom: unscattered beam kept apart
@@ -3300,7 +3312,12 @@ void LayeredSurface<Real>::precompute_incidences() {
     }
     cached_b_.assign(incidence_.size(), {});
     cached_e_.assign(incidence_.size(), {});
+    cached_c_.assign(incidence_.size(), {});
     for (std::size_t j = 0; j < incidence_.size(); ++j) {
+        if (first_pass_exact_ || first_reflection_exact_) {  // (the exact pass takes the solution's part out: the entry)
+            entry(incidence_[j], ws);
+            cached_c_[j] = ws.c;
+        }
         if (detail::needs_reflected(outputs_)) {
             const Real* f = field(incidence_[j], false, ws);
             cached_b_[j].assign(f, f + size);
@@ -3452,19 +3469,14 @@ std::vector<Real> LayeredSurface<Real>::fourier_coefficients(LayerOutput which, 
         if (!(mu_i[a] > 0)) continue;
         const Real scale = scattering_scale(mu_i[a], ws);
         const Real* fld = nullptr;
-        if (exact_pass) {  // (the entry kept for the pass: with_exact_pass)
-            entry(mu_i[a], ws);
-            fld = cached_field(mu_i[a], transmitted);
-            if (!fld) fld = field_of_entry(transmitted, ws, modes_);
-        } else {
-            fld = field(mu_i[a], transmitted, ws);
-        }
+        const Real* c = exact_pass ? entry_and_field(mu_i[a], transmitted, ws, fld) : nullptr;  // (as with_exact_pass)
+        if (!exact_pass) fld = field(mu_i[a], transmitted, ws);
         for (std::size_t b = 0; b < no; ++b) {
             const Real* w = exits.data() + b * kk * m;
             Real* a_k = out.data() + (a * no + b) * kk;
             std::fill(a_k, a_k + kk, Real(0));
             if (exact_pass && mu_o[b] > 0) {
-                subtract_discrete_pass(transmitted, w, ws, a_k);
+                subtract_discrete_pass(transmitted, w, c, ws, a_k);
                 add_exact_pass_modes(mu_i[a], mu_o[b], transmitted, ws, a_k);
             }
             for (std::size_t k = 0; k < kk; ++k) {
