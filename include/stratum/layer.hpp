@@ -1622,12 +1622,12 @@ private:
         return ws.c.data();
     }
 
-    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w, from the entry `entry`.
-    void subtract_discrete_pass(bool transmitted, const Real* exit_w, const Real* entry, Workspace& ws, Real* delta) const {
+    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w, from the entry c_in (entry()).
+    void subtract_discrete_pass(bool transmitted, const Real* exit_w, const Real* c_in, Workspace& ws, Real* delta) const {
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
         ws.first.assign(m, Real(0));
         for (std::size_t k = 0; k < kk; ++k) {
-            const Real* c = entry + k * m;
+            const Real* c = c_in + k * m;
             if (transmitted) {
                 for (std::size_t n = 0; n < m; ++n) ws.first[n] = std::exp(-first_pass_tau_ / q_.nodes[n]) * c[n];
             } else {
