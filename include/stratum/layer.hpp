@@ -936,6 +936,21 @@ void extend_phase_modes(PreparedStack<Real>& stack, const Quadrature<Real>& q, i
 /// (LayeredSurface::separate_direct_beam): specular top and bottom faces, and interior faces that do not change
 /// the index (identity operators). An interior face that refracts maps an ordinate onto a cosine between
 /// ordinates, and the beam is then spread over them (README, known limitations).
+/// Whether a solve between specular faces needs the beam as a source, exact at its true angle (docs/physics.md section
+/// 6), in every slab (one thinner than film_limit is a film, tau = 0 in prepare_stack, whose response to the beam is
+/// exactly none; above it a slab's errors ~eps are small against its O(tau / mu) scattering; the beam was spread over
+/// the ordinates below sqrt(eps) mu_min, and a refracting stack's R jumped by 4.6e-3 at mu = 0.1 where a slab crossed
+/// that limit; found by review): for reflected or transmitted light, the ambient term (the subsurface reflectance at
+/// the exit cosine) and depths (without it a request for depths with ambient or operators alone spread the beam over
+/// the ordinates, and the net flux at albedo 1 wandered by 4e-4 where it is constant to 1e-13; found by review). Where
+/// the phase function is aliased on the ordinates (solve_modes) the beam is spread over them instead, its energy made
+/// exact (scattering_scale).
+template <class Real>
+bool needs_beam_source(const LayerRequest<Real>& request) noexcept {
+    return needs_reflected(request.outputs) || needs_transmitted(request.outputs) ||
+           includes(request.outputs, LayerOutput::ambient) || !request.depths.empty();
+}
+
 template <class Real>
 bool beam_stays_on_its_ordinate(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                 const Boundary<Real>& bottom) noexcept {
@@ -1235,6 +1250,13 @@ private:
                                 const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
                                 const LayerOptions& options, const LayerRequest<Real>& request,
                                 const detail::PreparedOperators<Real>& prepared);
+    // solve() of an equivalent simpler problem where there is one (an empty slab dropped, a floor under opaque slabs
+    // made black); nothing otherwise.
+    static std::optional<LayeredSurface> solve_simpler(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                                       const std::vector<Boundary<Real>>& interior,
+                                                       const Boundary<Real>& bottom, const LayerOptions& options,
+                                                       const LayerRequest<Real>& request,
+                                                       const detail::PreparedOperators<Real>& prepared);
     template <class R>
     friend LayeredSurface<R> solve_stack(const detail::non_deduced_t<Boundary<R>>&, const std::vector<Slab<R>>&,
                                          const std::vector<Boundary<R>>&, const detail::non_deduced_t<Boundary<R>>&,
@@ -1258,6 +1280,8 @@ private:
     void solve_depths(const detail::PreparedStack<Real>& stack, const std::vector<Slab<Real>>& slabs,
                       const LayerOptions& options, const std::vector<Real>& depths);
     void separate_direct_beam(Real scaled_tau, Real true_tau);
+    void set_up_exact_passes(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
+                             const Boundary<Real>& bottom, const detail::PreparedStack<Real>& stack, LayerOutput outputs);
     struct BeamDepth;
     BeamDepth beam_depth(const Slab<Real>& slab, const LayerOptions& options, Real t) const;
     std::vector<DepthPoint> beam_depth_profile(Real mu_i) const;
@@ -2529,11 +2553,10 @@ std::size_t empty_slab(const Boundary<Real>& top, const std::vector<Slab<Real>>&
 //     true angle (separate_direct_beam);
 //  7. the internal fields of the requested incidences (precompute_incidences; their surface reflectance in step 1).
 template <class Real>
-LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
-                                                 const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
-                                                 const LayerOptions& options, const LayerRequest<Real>& request,
-                                                 const detail::PreparedOperators<Real>& prepared) {
-    detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
+std::optional<LayeredSurface<Real>> LayeredSurface<Real>::solve_simpler(
+    const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs, const std::vector<Boundary<Real>>& interior,
+    const Boundary<Real>& bottom, const LayerOptions& options, const LayerRequest<Real>& request,
+    const detail::PreparedOperators<Real>& prepared) {
     // An empty slab between index-matched joints is nothing: solved without it (detail::empty_slab).
     const std::size_t empty = detail::empty_slab(top, slabs, interior, bottom, options, !request.depths.empty());
     if (empty < slabs.size()) {
@@ -2561,6 +2584,17 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         return solve(top, slabs, interior, Boundary<Real>::lambertian(Real(0), bottom.eta_above()), options, request,
                      without_floor);
     }
+    return std::nullopt;
+}
+
+template <class Real>
+LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                                 const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                                                 const LayerOptions& options, const LayerRequest<Real>& request,
+                                                 const detail::PreparedOperators<Real>& prepared) {
+    detail::validate_stack(top, slabs, interior, bottom, options, request);  // 1.
+    if (std::optional<LayeredSurface> simpler = solve_simpler(top, slabs, interior, bottom, options, request, prepared))
+        return std::move(*simpler);
     LayeredSurface s(top, bottom);
     s.top_entry_ = prepared.top_entry ? prepared.top_entry
                                       : std::make_shared<const detail::EntryTransmittance<Real>>(top, Incidence::from_above);
@@ -2604,35 +2638,9 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         detail::prepare_stack(top, slabs, interior, bottom, s.q_, modes, options, request, prepared.interior);
     s.exit_top_ = prepared.top_exit.empty() ? s.top_face().transmittance_at_ordinates() : prepared.top_exit;  // 3.
     s.exit_bottom_ = prepared.bottom_exit.empty() ? s.bottom_face().transmittance_at_ordinates() : prepared.bottom_exit;
-    // Between specular faces around slabs joined by index-matched faces the beam is a source, exact at its true
-    // angle (docs/physics.md section 6), in every slab: one thinner than detail::film_limit is a film (tau = 0,
-    // prepare_stack), whose response to the beam is exactly none, and above that limit a slab's errors ~eps are
-    // small against its O(tau / mu) scattering. (The beam was spread over the ordinates below sqrt(eps) mu_min, and
-    // a refracting stack's R jumped by 4.6e-3 at mu = 0.1 where a slab crossed that limit; found by review.) Where the
-    // phase function is aliased on the ordinates (solve_modes) the beam is spread over the ordinates instead, with
-    // its energy made exact (scattering_scale).
-    // (The ambient term too: between specular faces it is the subsurface reflectance at the exit cosine. Depths too:
-    // without the beam as a source, a request for depths with ambient or operators alone spread it over
-    // the ordinates, and the net flux at albedo 1 wandered by 4e-4 where it is constant to 1e-13; found by review.)
-    const bool beam = detail::beam_is_a_source(top, interior, bottom) &&
-                      (detail::needs_reflected(request.outputs) || detail::needs_transmitted(request.outputs) ||
-                       includes(request.outputs, LayerOutput::ambient) || !request.depths.empty());
-    if (beam) s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
-    // A rough top over a specular bottom or a specular top over a rough one, slabs joined by index-matched faces: the
-    // BTDF's unscattered first pass exact at its angle (with_exact_pass).
-    bool matched_joints = true;
-    for (const Boundary<Real>& b : interior)
-        matched_joints = matched_joints && !b.rough() && !b.lambertian() && b.eta_above() == b.eta_below();
-    if (top.rough() != bottom.rough() && !top.lambertian() && !bottom.lambertian() && matched_joints &&
-        includes(request.outputs, LayerOutput::transmission)) {
-        s.first_pass_exact_ = true;
-    }
-    // and a specular top over a rough bottom: the BRDF's pass reflected once by the bottom (with_exact_pass)
-    if (!top.rough() && !top.lambertian() && bottom.rough() && matched_joints &&
-        includes(request.outputs, LayerOutput::subsurface_reflection))
-        s.first_reflection_exact_ = true;
-    if (s.first_pass_exact_ || s.first_reflection_exact_)
-        for (const detail::SlabModes<Real>& slab : stack.slabs) s.first_pass_tau_ += slab.slab.optical_thickness();
+    if (detail::beam_is_a_source(top, interior, bottom) && detail::needs_beam_source(request))
+        s.set_up_beam(top, slabs, interior, bottom, stack, modes, options);
+    s.set_up_exact_passes(top, interior, bottom, stack, request.outputs);
     s.solve_modes(stack, modes, request.tolerance);  // 4.
     // A rule split at refracting joints (layer_quadrature) integrates a peaked phase function less exactly than one
     // half-range rule; where it aliases it, the beam would be spread over the ordinates and the unscattered beam
@@ -3274,6 +3282,22 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::dep
         out.push_back({d.depth, non_negative(fluence), net});  // (rounding: -3e-15 where no light reaches)
     }
     return out;
+}
+
+// Step 3b: one face rough and the other specular, slabs joined by index-matched faces: the BTDF's unscattered pass, and
+// under a specular top the BRDF's pass reflected once by the rough bottom, exact at their angles (with_exact_pass).
+template <class Real>
+void LayeredSurface<Real>::set_up_exact_passes(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
+                                               const Boundary<Real>& bottom, const detail::PreparedStack<Real>& stack,
+                                               LayerOutput outputs) {
+    bool matched_joints = true;
+    for (const Boundary<Real>& b : interior)
+        matched_joints = matched_joints && !b.rough() && !b.lambertian() && b.eta_above() == b.eta_below();
+    if (!matched_joints || top.lambertian() || bottom.lambertian()) return;
+    first_pass_exact_ = top.rough() != bottom.rough() && includes(outputs, LayerOutput::transmission);
+    first_reflection_exact_ = !top.rough() && bottom.rough() && includes(outputs, LayerOutput::subsurface_reflection);
+    if (first_pass_exact_ || first_reflection_exact_)
+        for (const detail::SlabModes<Real>& slab : stack.slabs) first_pass_tau_ += slab.slab.optical_thickness();
 }
 
 // Step 6: between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its
