@@ -932,10 +932,6 @@ void extend_phase_modes(PreparedStack<Real>& stack, const Quadrature<Real>& q, i
         if (p.phase.modes < modes) append_phase_fourier_modes(p.moments, q.nodes, modes, p.phase);
 }
 
-/// Whether the unscattered beam stays on its ordinate through the whole stack, so that the solver can keep it apart
-/// (LayeredSurface::separate_direct_beam): specular top and bottom faces, and interior faces that do not change
-/// the index (identity operators). An interior face that refracts maps an ordinate onto a cosine between
-/// ordinates, and the beam is then spread over them (README, known limitations).
 /// Whether a solve between specular faces needs the beam as a source, exact at its true angle (docs/physics.md section
 /// 6), in every slab (one thinner than film_limit is a film, tau = 0 in prepare_stack, whose response to the beam is
 /// exactly none; above it a slab's errors ~eps are small against its O(tau / mu) scattering; the beam was spread over
@@ -951,6 +947,10 @@ bool needs_beam_source(const LayerRequest<Real>& request) noexcept {
            includes(request.outputs, LayerOutput::ambient) || !request.depths.empty();
 }
 
+/// Whether the unscattered beam stays on its ordinate through the whole stack, so that the solver can keep it apart
+/// (LayeredSurface::separate_direct_beam): specular top and bottom faces, and interior faces that do not change
+/// the index (identity operators). An interior face that refracts maps an ordinate onto a cosine between
+/// ordinates, and the beam is then spread over them (README, known limitations).
 template <class Real>
 bool beam_stays_on_its_ordinate(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                 const Boundary<Real>& bottom) noexcept {
@@ -1595,7 +1595,8 @@ private:
                     : std::fmin(std::fmax(-((wi.x / ri) * (wo.x / ro) + (wi.y / ri) * (wo.y / ro)), Real(-1)), Real(1));
     }
 
-    // sum_k a_k cos(k dphi), dphi the azimuth between -wi and wo (mode 0 alone at the pole).
+    // sum_k a_k cos(k dphi), dphi the azimuth between -wi and wo (at the pole, wi or wo along the normal, the azimuth is
+    // undefined and only mode 0 survives).
     Real mode_sum(Vec3<Real> wi, Vec3<Real> wo, const Real* a) const {
         bool pole = false;
         const Real cos_dphi = azimuth_cosine(wi, wo, pole);
@@ -1620,7 +1621,7 @@ private:
     // brdf and btdf take that pass out of the solution's modes and add it exactly at (wi, wo) (exact_pass), as a
     // value, not a Fourier series: a lobe narrow in azimuth needs more modes than the solve has, and cut to them it
     // rang (at 1 | 1.05, slope 0.1, 88 degrees off the lobe 4.3 where the truth is 0.25; found by the next review).
-    // fourier_coefficients has no choice but the series (exact_pass_modes): there such a lobe rings.
+    // fourier_coefficients has no choice but the series (add_exact_pass_modes): there such a lobe rings.
     Real with_exact_pass(Vec3<Real> wi, Vec3<Real> wo, bool transmitted, Workspace& ws) const {
         const Real mu_i = std::fmin(wi.z, Real(1)), mu_o = std::fmin(std::fabs(wo.z), Real(1));
         const Real* fld = nullptr;
@@ -1652,24 +1653,25 @@ private:
         ws.first.assign(m, Real(0));
         for (std::size_t k = 0; k < kk; ++k) {
             const Real* c = c_in + k * m;
+            const Real* d = first_pass_d_.data();
             if (transmitted) {
-                for (std::size_t n = 0; n < m; ++n) ws.first[n] = std::exp(-first_pass_tau_ / q_.nodes[n]) * c[n];
+                for (std::size_t n = 0; n < m; ++n) ws.first[n] = d[n] * c[n];
             } else {
                 const Real* r = bottom_ops_->R12().mode(static_cast<int>(k));  // (row n out, column i in)
                 for (std::size_t n = 0; n < m; ++n) {
                     Real sum = 0;
-                    for (std::size_t i = 0; i < m; ++i) sum += r[n * m + i] * std::exp(-first_pass_tau_ / q_.nodes[i]) * c[i];
-                    ws.first[n] = std::exp(-first_pass_tau_ / q_.nodes[n]) * sum;
+                    for (std::size_t i = 0; i < m; ++i) sum += r[n * m + i] * d[i] * c[i];
+                    ws.first[n] = d[n] * sum;
                 }
             }
             for (std::size_t n = 0; n < m; ++n) delta[k] -= exit_w[k * m + n] * ws.first[n];
         }
     }
 
-    // The pass's geometry: the light let in (T_12(mu_i), or 1 under a rough top, whose BTDF carries it) times its
-    // attenuation, and the direction inside at which a rough face meets it; the cosines mu_t of wi's Snell direction
-    // and mu_e of wo's inside. With `rough_top`, the pass through the bottom's specular face at mu_e (its radiance
-    // transmittance included in `through`).
+    // The pass's geometry: `through`, the factors besides the rough face's BRDF or BTDF (the light let in, T_12(mu_i),
+    // under a specular top; the attenuations; the specular face's radiance transmittance on the way out), and the
+    // cosines inside, mu_t of wi's Snell direction (specular top) and mu_e of wo's (specular exit face); 0 where either
+    // cannot be reached.
     struct PassGeometry {
         Real through = 0, mu_t = 0, mu_e = 0;
     };
@@ -1731,24 +1733,12 @@ private:
 
     // Radiance leaving through `face` towards wo from the internal field, summed over modes.
     Real exit_sum(Vec3<Real> wi, Vec3<Real> wo, const Face& face, const Real* fld, Workspace& ws) const {
-        bool pole = false;
-        const Real cos_dphi = azimuth_cosine(wi, wo, pole);
-        const Real mu_o = std::fmin(std::fabs(wo.z), Real(1));
-        exit_weights(mu_o, face, ws);
-        const std::size_t m = q_.size();
-        Real sum = 0, c_prev = 1, c_k = 1;  // cos(k dphi) by the Chebyshev recurrence
-        // At the pole (wi or wo along the normal) the azimuth is undefined and only mode 0 survives.
-        const int modes = pole ? std::min(modes_, 1) : modes_;
-        for (int k = 0; k < modes; ++k) {
-            const Real* f = fld + static_cast<std::size_t>(k) * m;
-            Real s = 0;
-            for (std::size_t i = 0; i < m; ++i) s += ws.out[static_cast<std::size_t>(k) * m + i] * f[i];
-            sum += c_k * s;
-            const Real c_next = k == 0 ? cos_dphi : 2 * cos_dphi * c_k - c_prev;
-            c_prev = c_k;
-            c_k = c_next;
-        }
-        return non_negative(sum);
+        exit_weights(std::fmin(std::fabs(wo.z), Real(1)), face, ws);
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
+        ws.small.assign(kk, Real(0));
+        for (std::size_t k = 0; k < kk; ++k)
+            for (std::size_t i = 0; i < m; ++i) ws.small[k] += ws.out[k * m + i] * fld[k * m + i];
+        return non_negative(mode_sum(wi, wo, ws.small.data()));
     }
 
     // ---- Between specular faces (beam_): the beam as a source (docs/physics.md section 6) ----
@@ -2302,6 +2292,7 @@ private:
     bool first_pass_exact_ = false;  // one face rough, the other specular: the BTDF's first pass exact (with_exact_pass)
     bool first_reflection_exact_ = false;  // a specular top over a rough bottom: the BRDF's pass reflected once by it exact
     Real first_pass_tau_ = 0;        // the slabs' delta-M scaled thickness, which those passes cross
+    std::vector<Real> first_pass_d_;  // e^{-first_pass_tau_ / mu_m} per ordinate
     bool aliased_ = false;  // a slab's phase function was aliased on the ordinates (regularized: slab.hpp)
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled), as solved
     Real beam_tau_ = 0;                                   // the slab's true optical thickness
@@ -3296,8 +3287,9 @@ void LayeredSurface<Real>::set_up_exact_passes(const Boundary<Real>& top, const 
     if (!matched_joints || top.lambertian() || bottom.lambertian()) return;
     first_pass_exact_ = top.rough() != bottom.rough() && includes(outputs, LayerOutput::transmission);
     first_reflection_exact_ = !top.rough() && bottom.rough() && includes(outputs, LayerOutput::subsurface_reflection);
-    if (first_pass_exact_ || first_reflection_exact_)
-        for (const detail::SlabModes<Real>& slab : stack.slabs) first_pass_tau_ += slab.slab.optical_thickness();
+    if (!first_pass_exact_ && !first_reflection_exact_) return;
+    for (const detail::SlabModes<Real>& slab : stack.slabs) first_pass_tau_ += slab.slab.optical_thickness();
+    for (const Real mu : q_.nodes) first_pass_d_.push_back(std::exp(-first_pass_tau_ / mu));
 }
 
 // Step 6: between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its
