@@ -93,7 +93,7 @@ void BM_layer_solve_no_operators_prepared(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_solve_no_operators_prepared)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
-// Preparing the two faces (their operators; the entry tables are built on first evaluation).
+// Preparing the two faces (their operators; the entry tables are built as evaluations need them).
 void BM_layer_prepare_faces(benchmark::State& state) {
     stratum::LayerOptions options;
     options.ordinates = static_cast<int>(state.range(0));
@@ -104,8 +104,9 @@ void BM_layer_prepare_faces(benchmark::State& state) {
 }
 BENCHMARK(BM_layer_prepare_faces)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(benchmark::kMillisecond);
 
-// Solve plus the first reflectance(mu) evaluation, which tabulates the top face's entry transmittance: from
-// plain faces every solve pays for the table, from prepared faces only the first.
+// Solve plus the first reflectance(mu) evaluation, which computes the 4 points of the top face's entry
+// transmittance table that interpolate at mu: from plain faces every solve pays for them, from prepared faces only
+// the first.
 void BM_layer_solve_and_first_reflectance(benchmark::State& state) {
     stratum::LayerOptions options;
     options.ordinates = 16;

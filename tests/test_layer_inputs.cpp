@@ -231,8 +231,8 @@ void check_surface(const LayeredSurface<double>& s, const std::string& label, do
 }
 
 // The boundary pairs every parameter sweep runs through (air | n = 1.4 | air unless stated).
-// A layer with a rough face costs ~50 ms at M = 4 (its transmittance table: 64 hemispherical integrals per face,
-// on first evaluation), a specular one ~1 ms: the sweeps visit fewer values with rough faces.
+// A layer with a rough face costs up to ~50 ms at M = 4 (its transmittance table: up to 65 hemispherical integrals
+// per face, as evaluations need them), a specular one ~1 ms: the sweeps visit fewer values with rough faces.
 struct Faces {
     const char* name;
     Boundary<double> top, bottom;

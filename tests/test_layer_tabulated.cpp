@@ -127,6 +127,36 @@ TEST_CASE("the top's reflectance from its entry table: within 3e-6 of the integr
         }
 }
 
+TEST_CASE("the entry table computes the points an evaluation needs, not all 65 at the first") {
+    // EntryTransmittance's points are 2-D integrals (~0.14 ms each at sigma 0.3): the whole table at the first
+    // evaluation made it ~30 times as costly as the next. Now each evaluation computes the 4 points that interpolate
+    // at its mu where they are new, each once, and the values are those of the whole table bit for bit.
+    using stratum::Incidence;
+    using Entry = stratum::detail::EntryTransmittance<double>;
+    const Boundary<double> face = RoughDielectric<double>(0.3, 1.0, 1.4);
+    const Entry lazy(face, Incidence::from_above), whole(face, Incidence::from_above);
+    whole.prepare(false);
+    CHECK(whole.points_computed() == 65);
+    CHECK(lazy.points_computed() == 0);
+    CHECK(lazy(0.5) == whole(0.5));
+    CHECK(lazy.points_computed() == 4);
+    CHECK(lazy(0.505) == whole(0.505));  // (the same 4 points)
+    CHECK(lazy.points_computed() == 4);
+    CHECK(lazy(1.0) == whole(1.0));  // (the last 4)
+    CHECK(lazy.points_computed() == 8);
+    for (int j = 1; j <= 128; ++j) {  // every interval of t = sqrt(mu), from the first (mu = 1 / 64^2) on
+        const double t = j / 128.0, mu = t * t;
+        CHECK(lazy(mu) == whole(mu));
+    }
+    CHECK(lazy.points_computed() == 65);
+    // light from the denser side and a specular face: never tabulated
+    const Entry denser(face, Incidence::from_below), smooth(Boundary<double>(SmoothDielectric<double>(1.0, 1.4)),
+                                                            Incidence::from_above);
+    CHECK(denser(0.5) == face.hemispherical_transmittance(-0.5));
+    CHECK(smooth(0.5) == Boundary<double>(SmoothDielectric<double>(1.0, 1.4)).hemispherical_transmittance(0.5));
+    CHECK(denser.points_computed() + smooth.points_computed() == 0);
+}
+
 TEST_CASE("where a table cannot serve, the faces keep their integrals, bit for bit") {
     const auto slab = Slab<double>(0.9, 0.5, 1.0);
     const auto check_equal = [&](const Boundary<double>& top, const Boundary<double>& bottom, int tables) {

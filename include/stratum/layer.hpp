@@ -21,6 +21,8 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <limits>
@@ -148,8 +150,9 @@ struct LayerRequest {
     /// Tabulate, at the solve, the rough faces' couplings between every outside cosine and the ordinates (the
     /// azimuthal integrals of their BTDF that brdf, btdf, reflectance and transmittance compute at an incidence or exit
     /// not listed in `incidence`), and the top face's hemispherical reflectance (where its table holds it:
-    /// detail::EntryTransmittance) and the faces' transmittance (else tabulated at the first evaluation), so that
-    /// evaluation at any angle costs microseconds and no first evaluation builds a table (README, speed table). The
+    /// detail::EntryTransmittance) and the faces' transmittance (else tabulated point by point as evaluations need
+    /// them: 4 integrals where an evaluation's mu is new), so that evaluation at any angle costs microseconds and no
+    /// evaluation computes a table's points (README, speed table). The
     /// couplings are interpolated by cubic polynomials in
     /// (2 / pi) asin(sqrt(mu)) (detail::MuTable, 128 intervals; the first two keep the integrals); each table is
     /// checked at the solve against the integrals at 16 points between its nodes, and a face whose lobe is too narrow
@@ -290,11 +293,23 @@ struct MuTable {
     // f(mu, out) writes the width values at mu.
     template <class F>
     void build(int intervals, int values_per_point, F f) {
+        allocate(intervals, values_per_point);
+        for (int j = 0; j <= intervals; ++j) fill(j, f);
+    }
+    // Or point by point (EntryTransmittance): the storage first, then each point j as needed (the 4 from first_point(mu)).
+    void allocate(int intervals, int values_per_point) {
         width = values_per_point;
-        values.resize(static_cast<std::size_t>(intervals + 1) * static_cast<std::size_t>(width));
-        for (int j = 0; j <= intervals; ++j)
-            f(j == 0 ? Real(1e-12) : cosine(Real(j) / Real(intervals)),
-              values.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(width));
+        values.assign(static_cast<std::size_t>(intervals + 1) * static_cast<std::size_t>(width), Real(0));
+    }
+    template <class F>
+    void fill(int j, F f) {
+        f(j == 0 ? Real(1e-12) : cosine(Real(j) / Real(intervals())),
+          values.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(width));
+    }
+    // The first of the 4 points that interpolate at mu.
+    int first_point(Real mu) const noexcept {
+        Real w[4];
+        return lagrange_weights(Points{}, intervals() + 1, parameter(mu) * Real(intervals()), 4, w).first;
     }
     Real cosine(Real t) const noexcept {
         if (!arcsine) return t * t;
@@ -349,8 +364,10 @@ bool turned_over(const Boundary<Real>& top, const Boundary<Real>& bottom) noexce
 
 /// The directional-hemispherical transmittance of a boundary for light arriving at |cosine| mu from one side (the
 /// outside of a layer: above a top face, below a bottom face), and its reflectance. A rough face's 2-D integral
-/// (which gives both) is tabulated on first use (MuTable, 64 intervals; std::call_once keeps it thread-safe) and
-/// shared by every layer solved with one PreparedBoundary, so only the first evaluation pays for it. Exact below the
+/// (which gives both) is tabulated (MuTable, 64 intervals) point by point as evaluations need them: the 4 points
+/// that interpolate at mu, each computed once (std::call_once per point keeps it thread-safe), shared by every layer
+/// solved with one PreparedBoundary. (The whole table at the first evaluation, as before, cost 65 integrals there,
+/// about 9 ms at M = 16 for sigma 0.3, where the evaluation itself takes 0.3 ms.) Exact below the
 /// first table interval, for a specular face, and for light from a denser medium: there T(mu) has an onset at the
 /// critical cosine, as steep as sigma is small, which no polynomial table resolves (found by fuzz_layer: n 1.88 | 0.50,
 /// sigma 7e-5, mu 0.996 gave a transmittance 12% above the entering flux). The layer uses the tabulated
@@ -359,7 +376,9 @@ bool turned_over(const Boundary<Real>& top, const Boundary<Real>& bottom) noexce
 template <class Real>
 class EntryTransmittance {
 public:
-    EntryTransmittance(const Boundary<Real>& boundary, Incidence side) : boundary_(boundary), side_(side) {}
+    EntryTransmittance(const Boundary<Real>& boundary, Incidence side) : boundary_(boundary), side_(side) {
+        if (tabulated(Real(1))) table_.allocate(intervals, 2);
+    }
 
     Real operator()(Real mu) const { return value(mu, false); }
     // From the table where it was checked to hold R (check_reflectance), else the integral.
@@ -376,6 +395,8 @@ public:
         if (reflectance) check_reflectance();
         else build();
     }
+    // How many of the table's points have been computed (each a 2-D integral; tests).
+    int points_computed() const noexcept { return computed_.load(); }
 
 private:
     bool tabulated(Real mu) const noexcept {
@@ -384,19 +405,24 @@ private:
         const Real eta_inside = from_above ? boundary_.eta_below() : boundary_.eta_above();
         return boundary_.rough() && !(eta_outside > eta_inside) && !(mu < grazing);
     }
-    // The integrals with 12 Gauss nodes per panel instead of 16: within 4.4e-7 of the default's (measured at the
-    // table's points, sigma 0.005 to 2, n 1 | 1.1, 1.4, 2.5), 25 times below the table's own interpolation error
-    // (1.1e-5, tests/test_layer.cpp), in about 0.6 of the time (10 nodes: 1.1e-5 at sigma 0.1, n 2.5).
-    void build() const {
-        std::call_once(once_, [this] {
+    // Point j of the table, computed once. The integrals with 12 Gauss nodes per panel instead of 16: within 4.4e-7
+    // of the default's (measured at the table's points, sigma 0.005 to 2, n 1 | 1.1, 1.4, 2.5), 25 times below the
+    // table's own interpolation error (1.1e-5, tests/test_layer.cpp), in about 0.6 of the time (10 nodes: 1.1e-5 at
+    // sigma 0.1, n 2.5).
+    void point(int j) const {
+        std::call_once(point_once_[static_cast<std::size_t>(j)], [this, j] {
             const RoughDielectric<Real>& face = *boundary_.rough_interface();
             const bool from_above = side_ == Incidence::from_above;
-            table_.build(intervals, 2, [&](Real x, Real* out) {
+            table_.fill(j, [&](Real x, Real* out) {
                 const HemisphericalTotals<Real> a = face.hemispherical_totals(from_above ? x : -x, 12);
                 out[0] = a.transmittance;
                 out[1] = a.reflectance;
             });
+            ++computed_;
         });
+    }
+    void build() const {
+        for (int j = 0; j <= intervals; ++j) point(j);
     }
     // R has a shadowing feature near mu ~ sigma that the nodes miss for small sigma (1e-2 at sigma 5e-4, 4.2e-5 at
     // 1e-2; found by review): the table's R is used only where it is within reflectance_limit of the integrals
@@ -421,7 +447,8 @@ private:
         const Real signed_mu = side_ == Incidence::from_above ? mu : -mu;
         if (!tabulated(mu))
             return reflected ? boundary_.hemispherical_reflectance(signed_mu) : boundary_.hemispherical_transmittance(signed_mu);
-        build();
+        const int first = table_.first_point(mu);
+        for (int a = 0; a < 4; ++a) point(first + a);
         const Real t = table_(mu, reflected ? 1 : 0);
         return t < 0 ? Real(0) : t;
     }
@@ -430,8 +457,10 @@ private:
     static constexpr Real grazing = Real(1) / Real(intervals * intervals);  // below the first table interval
     Boundary<Real> boundary_;
     Incidence side_;
-    mutable std::once_flag once_, checked_;
-    mutable MuTable<Real> table_;
+    mutable std::array<std::once_flag, intervals + 1> point_once_;
+    mutable std::once_flag checked_;
+    mutable std::atomic<int> computed_{0};
+    mutable MuTable<Real> table_;  // (allocated at construction: point() writes only its own point's values)
     mutable bool reflectance_held_ = false;  // (written once, under checked_)
 };
 
@@ -499,7 +528,7 @@ public:
         plain_ = build(gauss_legendre_half<Real>(options.ordinates));
     }
     /// The same face prepared for other options, sharing what does not depend on them: the entry transmittances
-    /// (built on first use, about 10 ms for a rough face), which a convergence study over the ordinates or the
+    /// (tabulated as evaluations need them, 65 points of about 0.14 ms each for a rough face), which a convergence study over the ordinates or the
     /// planner (planner.hpp) then builds once. Equal bit for bit to preparing other.boundary() afresh. Throws as the
     /// constructor.
     explicit PreparedBoundary(const PreparedBoundary& other, const LayerOptions& options)
@@ -545,8 +574,8 @@ private:
     friend LayeredSurface<R> solve_stack(const PreparedBoundary<R>&, const std::vector<Slab<R>>&,
                                          const std::vector<PreparedBoundary<R>>&, const PreparedBoundary<R>&,
                                          const detail::non_deduced_t<LayerRequest<R>>&);
-    // For the solver: the transmittance of light arriving from `side`, tabulated on first use for a rough face
-    // and shared by the layers solved with this face; and its values at the ordinates (empty: specular face).
+    // For the solver: the transmittance of light arriving from `side`, tabulated as evaluations need it for a rough
+    // face and shared by the layers solved with this face; and its values at the ordinates (empty: specular face).
     const std::shared_ptr<const detail::EntryTransmittance<Real>>& entry_transmittance(Incidence side) const noexcept {
         return side == Incidence::from_above ? from_above_ : from_below_;
     }
