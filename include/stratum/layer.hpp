@@ -1658,8 +1658,9 @@ private:
 
     // One face rough and the other specular (first_pass_exact_, first_reflection_exact_): the light let in that crosses
     // the slabs unscattered and leaves through the bottom (under either top) or, reflected once by a rough bottom,
-    // through a specular top. The solution on the ordinates holds it as D c (D the slabs' e^{-tau'/mu_m}, c the entry)
-    // or D R_23 D c (R_23 the bottom's reflection operator) and the exit reads it out between the ordinates: a lobe
+    // through a specular top. The solution on the ordinates holds it as D c (D the slabs' e^{-tau'/mu_m}, c the entry;
+    // across joints that refract, D_1 T_12 D_2 ... with the joints' operators) or D R_23 D c (R_23 the bottom's
+    // reflection operator) and the exit reads it out between the ordinates: a lobe
     // narrower than their spacing near the normal came out inflated (lit at the normal under a rough 0.3 top over a
     // smooth bottom, the BTDF integrated to 1.25 times the transmittance at 16 ordinates, 1.81 for slope 0.1; a
     // smooth top over a rough 0.05 bottom 1.61, and its BRDF 18% off the BRDF at 96 ordinates; found by review).
@@ -1692,24 +1693,34 @@ private:
         return ws.c.data();
     }
 
-    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w, from the entry c_in (entry()).
+    // delta[k] -= the pass as the solution holds it, read out by the exit weights exit_w, from the entry c_in (entry()):
+    // down through the columns (D_g, then the refracting joint's T_12 below it), and for reflection the bottom's R_23
+    // and up again (D_g, then the joint's T_21 above it).
     void subtract_discrete_pass(bool transmitted, const Real* exit_w, const Real* c_in, Workspace& ws, Real* delta) const {
-        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_);
-        ws.first.assign(m, Real(0));
+        const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes_), columns = pass_d_.size();
+        std::vector<Real>& v = ws.first;
+        std::vector<Real>& next = ws.spread;
+        const auto apply = [&](const Real* a) {  // v = A v (row n out, column i in)
+            next.assign(m, Real(0));
+            for (std::size_t n = 0; n < m; ++n)
+                for (std::size_t i = 0; i < m; ++i) next[n] += a[n * m + i] * v[i];
+            std::swap(v, next);
+        };
         for (std::size_t k = 0; k < kk; ++k) {
-            const Real* c = c_in + k * m;
-            const Real* d = first_pass_d_.data();
-            if (transmitted) {
-                for (std::size_t n = 0; n < m; ++n) ws.first[n] = d[n] * c[n];
-            } else {
-                const Real* r = bottom_ops_->R12().mode(static_cast<int>(k));  // (row n out, column i in)
-                for (std::size_t n = 0; n < m; ++n) {
-                    Real sum = 0;
-                    for (std::size_t i = 0; i < m; ++i) sum += r[n * m + i] * d[i] * c[i];
-                    ws.first[n] = d[n] * sum;
+            const int mode = static_cast<int>(k);
+            v.assign(c_in + k * m, c_in + (k + 1) * m);
+            for (std::size_t g = 0; g < columns; ++g) {
+                for (std::size_t n = 0; n < m; ++n) v[n] *= pass_d_[g][n];
+                if (g + 1 < columns) apply(pass_joint_ops_[g]->T12().mode(mode));
+            }
+            if (!transmitted) {
+                apply(bottom_ops_->R12().mode(mode));
+                for (std::size_t g = columns; g-- > 0;) {
+                    for (std::size_t n = 0; n < m; ++n) v[n] *= pass_d_[g][n];
+                    if (g > 0) apply(pass_joint_ops_[g - 1]->T21().mode(mode));
                 }
             }
-            for (std::size_t n = 0; n < m; ++n) delta[k] -= exit_w[k * m + n] * ws.first[n];
+            for (std::size_t n = 0; n < m; ++n) delta[k] -= exit_w[k * m + n] * v[n];
         }
     }
 
@@ -1720,24 +1731,52 @@ private:
     struct PassGeometry {
         Real through = 0, mu_t = 0, mu_e = 0;
     };
+    // Across the columns (pass_tau_) the cosines follow Snell's law at the refracting joints between them: crossing
+    // down, the light let in keeps its flux T (specular top: an irradiance) and a radiance its radiance transmittance
+    // (rough top); crossing up, a radiance its radiance transmittance from below.
+    enum class Crossings { flux_down, radiance_down, radiance_up };
     PassGeometry pass_geometry(Real mu_i, Real mu_o, bool transmitted) const {
         const Face top = top_face(), bottom = bottom_face();
+        const std::size_t last = pass_tau_.size() - 1;
+        // The path with cosine c in column 0, traced down: the factor of its crossings into `factor` and its
+        // attenuations' exponent into `sum`; the cosine in the last column (0 where a joint reflects it totally).
+        const auto trace = [&](Real c, Crossings how, Real& factor, Real& sum) {
+            for (std::size_t g = 0; g <= last && c > 0; ++g) {
+                sum += pass_tau_[g] / c;
+                if (g == last) break;
+                const SmoothDielectric<Real>& joint = pass_joints_[g];
+                const Real below = std::fabs(joint.transmitted_cosine(c));
+                factor *= how == Crossings::flux_down       ? joint.transmittance(c)
+                          : how == Crossings::radiance_down ? joint.radiance_transmittance(c)
+                                                            : (below > 0 ? joint.radiance_transmittance(-below) : Real(0));
+                c = below;
+            }
+            return c;
+        };
         PassGeometry p;
-        if (transmitted && top.rough()) {
-            p.mu_e = bottom.internal_cosine(mu_o);
-            if (!(p.mu_e > 0)) return {};
-            p.through = bottom.boundary().smooth_interface().radiance_transmittance(bottom.from_inside(p.mu_e)) *
-                        std::exp(-first_pass_tau_ / p.mu_e);
+        Real factor = 1, sum = 0;
+        if (transmitted && top.rough()) {  // wo's direction traced back up to column 0, then the pass down from there
+            Real c = bottom.internal_cosine(mu_o);
+            for (std::size_t g = last; g > 0 && c > 0; --g) c = std::fabs(pass_joints_[g - 1].transmitted_cosine(-c));
+            if (!(c > 0)) return {};
+            p.mu_e = c;
+            const Real c_last = trace(c, Crossings::radiance_down, factor, sum);
+            p.through = factor * bottom.boundary().smooth_interface().radiance_transmittance(bottom.from_inside(c_last)) *
+                        std::exp(-sum);
             return p;
         }
-        p.mu_t = top.internal_cosine(mu_i);
+        const Real mu_t = top.internal_cosine(mu_i);
+        p.mu_t = mu_t > 0 ? trace(mu_t, Crossings::flux_down, factor, sum) : Real(0);
         if (!(p.mu_t > 0)) return {};
-        p.through = top.transmittance_from_outside(mu_i) * std::exp(-first_pass_tau_ / p.mu_t);
-        if (transmitted) return p;
-        p.mu_e = top.internal_cosine(mu_o);
-        if (!(p.mu_e > 0)) return {};
-        p.through *= top.boundary().smooth_interface().radiance_transmittance(top.from_inside(p.mu_e)) *
-                     std::exp(-first_pass_tau_ / p.mu_e);
+        p.through = top.transmittance_from_outside(mu_i) * factor;
+        if (!transmitted) {  // and back up to wo
+            const Real mu_e = top.internal_cosine(mu_o);
+            factor = 1;
+            p.mu_e = mu_e > 0 ? trace(mu_e, Crossings::radiance_up, factor, sum) : Real(0);
+            if (!(p.mu_e > 0)) return {};
+            p.through *= factor * top.boundary().smooth_interface().radiance_transmittance(top.from_inside(mu_e));
+        }
+        p.through *= std::exp(-sum);
         return p;
     }
 
@@ -2370,8 +2409,12 @@ private:
     std::vector<Real> mirror_scaled_tau_, mirror_true_tau_;
     bool first_pass_exact_ = false;  // one face rough, the other specular: the BTDF's first pass exact (with_exact_pass)
     bool first_reflection_exact_ = false;  // a specular top over a rough bottom: the BRDF's pass reflected once by it exact
-    Real first_pass_tau_ = 0;        // the slabs' delta-M scaled thickness, which those passes cross
-    std::vector<Real> first_pass_d_;  // e^{-first_pass_tau_ / mu_m} per ordinate
+    // The slabs those passes cross, in columns between the joints that refract (one where none does): each column's
+    // delta-M scaled thickness and e^{-tau / mu_m} per ordinate, and the refracting joints with the solve's operators.
+    std::vector<Real> pass_tau_;
+    std::vector<std::vector<Real>> pass_d_;
+    std::vector<SmoothDielectric<Real>> pass_joints_;
+    std::vector<detail::SharedOperators<Real>> pass_joint_ops_;
     bool aliased_ = false;  // a slab's phase function was aliased on the ordinates (regularized: slab.hpp)
     Real direct_tau_ = 0;                                 // its optical thickness (delta-M scaled), as solved
     Real beam_tau_ = 0;                                   // the slab's true optical thickness
@@ -3356,21 +3399,31 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::dep
     return out;
 }
 
-// Step 3b: one face rough and the other specular, slabs joined by index-matched faces: the BTDF's unscattered pass, and
+// Step 3b: one face rough and the other specular, slabs joined by specular faces: the BTDF's unscattered pass, and
 // under a specular top the BRDF's pass reflected once by the rough bottom, exact at their angles (with_exact_pass).
 template <class Real>
 void LayeredSurface<Real>::set_up_exact_passes(const Boundary<Real>& top, const std::vector<Boundary<Real>>& interior,
                                                const Boundary<Real>& bottom, const detail::PreparedStack<Real>& stack,
                                                LayerOutput outputs) {
-    bool matched_joints = true;
-    for (const Boundary<Real>& b : interior)
-        matched_joints = matched_joints && !b.rough() && !b.lambertian() && b.eta_above() == b.eta_below();
-    if (!matched_joints || top.lambertian() || bottom.lambertian()) return;
+    bool specular_joints = true;
+    for (const Boundary<Real>& b : interior) specular_joints = specular_joints && !b.rough() && !b.lambertian();
+    if (!specular_joints || top.lambertian() || bottom.lambertian()) return;
     first_pass_exact_ = top.rough() != bottom.rough() && includes(outputs, LayerOutput::transmission);
     first_reflection_exact_ = !top.rough() && bottom.rough() && includes(outputs, LayerOutput::subsurface_reflection);
     if (!first_pass_exact_ && !first_reflection_exact_) return;
-    for (const detail::SlabModes<Real>& slab : stack.slabs) first_pass_tau_ += slab.slab.optical_thickness();
-    for (const Real mu : q_.nodes) first_pass_d_.push_back(std::exp(-first_pass_tau_ / mu));
+    // the columns: the slabs between the joints that refract (an index-matched joint passes light unchanged)
+    pass_tau_.push_back(Real(0));
+    for (std::size_t j = 0; j < stack.slabs.size(); ++j) {
+        pass_tau_.back() += stack.slabs[j].slab.optical_thickness();
+        if (j + 1 == stack.slabs.size() || interior[j].eta_above() == interior[j].eta_below()) continue;
+        pass_joints_.push_back(interior[j].smooth_interface());
+        pass_joint_ops_.push_back(stack.interior[j]);
+        pass_tau_.push_back(Real(0));
+    }
+    for (const Real tau : pass_tau_) {
+        pass_d_.emplace_back();
+        for (const Real mu : q_.nodes) pass_d_.back().push_back(std::exp(-tau / mu));
+    }
 }
 
 // Step 6: between two specular boundaries the unscattered beam stays on its own ordinate (every operator on its
