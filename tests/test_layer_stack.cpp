@@ -155,6 +155,28 @@ TEST_CASE("a specular top over refracting joints and a rough bottom: the joints'
             CHECK(layer.direct_transmittance(mu0) == 0);
         }
     }
+    // A joint that reflects totally (reached from outside where the top is index matched to a denser medium, or where
+    // a slab's index is below the outside's): the bounce is the whole reflection there, and a non-absorbing stack
+    // keeps its energy (that bounce was left out of the delta once taken out of the field: R + T 0.77 and 0.82 at
+    // mu 0.42 and 0.3 below; found by review). And a rough joint reflects a lobe, not a delta (it was taken for one:
+    // direct_reflectance 4.0e-4; found by review).
+    const std::vector<Slab<double>> pair{Slab<double>(0.9, 0.0, 0.5), Slab<double>(0.9, 0.0, 1.0)};
+    const auto matched = stratum::solve_stack<double>(Boundary<double>::index_matched(1.5), pair,
+                                                      {SmoothDielectric<double>(1.5, 1.2)},
+                                                      stratum::RoughDielectric<double>(0.3, 1.2, 1.0), LayerOptions{});
+    CHECK(matched.direct_reflectance(0.5) == doctest::Approx(std::exp(-2.0)).epsilon(1e-13));  // (critical cosine 0.6)
+    const std::vector<Slab<double>> clear{Slab<double>(1.0, 0.5, 0.5), Slab<double>(1.0, 0.5, 1.0)};
+    const auto below_air = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.5), clear,
+                                                        {SmoothDielectric<double>(1.5, 0.9)},
+                                                        stratum::RoughDielectric<double>(0.3, 0.9, 1.0), LayerOptions{});
+    for (double mu0 : {0.42, 0.3}) {  // (measured within 2.9e-3 at M = 16, converging)
+        INFO("mu0 " << mu0);
+        CHECK(std::fabs(below_air.reflectance(mu0).total() + below_air.transmittance(mu0) - 1) < 5e-3);
+    }
+    const auto rough_joint = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.5), pair,
+                                                          {stratum::RoughDielectric<double>(0.05, 1.5, 1.4)},
+                                                          stratum::RoughDielectric<double>(0.3, 1.4, 1.0), LayerOptions{});
+    CHECK(rough_joint.direct_reflectance(1.0) == 0);
     // (2) the BRDF without it: independent of the azimuth at the pole, and near the mirror direction within 5.5% of
     // M = 48 from M = 16 on (air | 1.5 | 1.4 over a rough 0.3 bottom; measured: pole 1.8e-3 / 8.9e-4 of its value over
     // the azimuth at M = 16 / 32; mirror at mu 0.95 and 0.9 3.5e-2 / 7.6e-3 from M = 48).
@@ -181,6 +203,12 @@ TEST_CASE("a specular top over refracting joints and a rough bottom: the joints'
             const double f = layer.subsurface_brdf(direction(mu, 0), direction(mu, pi));
             const double r = reference.subsurface_brdf(direction(mu, 0), direction(mu, pi));
             CHECK(std::fabs(f - r) / r < 5.5e-2);
+        }
+        // (3) the ambient term by reciprocity, r_a(wo) = R_s(wo.z): read from the field at the normal it was 0.173 /
+        // 0.179 / 0.181 at M = 16 / 32 / 48 where R_s is 0.1185 / 0.1190 / 0.1191 (found by review)
+        for (double mu : {1.0, 0.99, 0.5}) {
+            CHECK(layer.ambient(direction(mu, 0)) == doctest::Approx(layer.reflectance(mu).subsurface).epsilon(1e-12));
+            CHECK(layer.ambient(direction(mu, 0)) == doctest::Approx(reference.ambient(direction(mu, 0))).epsilon(1e-2));
         }
     }
 }
