@@ -7,7 +7,10 @@
 #include <stratum/fresnel.hpp>
 #include <stratum/layer.hpp>
 
+#include <atomic>
 #include <cmath>
+#include <cstdlib>
+#include <new>
 #include <utility>
 #include <vector>
 
@@ -21,6 +24,25 @@ using stratum::LayeredSurface;
 using stratum::Slab;
 using stratum::SmoothDielectric;
 using stratum::Vec3;
+
+// Every allocation of this test program is counted (a Workspace's evaluations must make none once it is sized).
+namespace {
+std::atomic<long> allocations{0};
+}  // namespace
+void* operator new(std::size_t n) {
+    ++allocations;
+    if (void* p = std::malloc(n > 0 ? n : 1)) return p;
+    throw std::bad_alloc();
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"  // (GCC 12 takes this pair, malloc and free, for a mismatch)
+#endif
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 namespace {
 
@@ -169,9 +191,15 @@ TEST_CASE("a specular top over refracting joints and a rough bottom: the joints'
     const auto below_air = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.5), clear,
                                                         {SmoothDielectric<double>(1.5, 0.9)},
                                                         stratum::RoughDielectric<double>(0.3, 0.9, 1.0), LayerOptions{});
-    for (double mu0 : {0.42, 0.3}) {  // (measured within 2.9e-3 at M = 16, converging)
+    // The delta is exact but what is taken out of the field is the mirror as the ordinates hold it, 20% off near the
+    // critical cosines: the rest of the light is scaled to what the true mirror leaves (mirror_scale). Without it R + T
+    // was 1.0167 at mu0 0.15 and 0.983 at 0.5 (found by review); with it 0.9937 to 0.9992 (the rough bottom's Smith
+    // shadowing loses light), as before the delta was kept apart (0.995 to 0.9985).
+    for (double mu0 : {0.6, 0.5, 0.42, 0.3, 0.2, 0.15, 0.12, 0.05}) {
         INFO("mu0 " << mu0);
-        CHECK(std::fabs(below_air.reflectance(mu0).total() + below_air.transmittance(mu0) - 1) < 5e-3);
+        const double total = below_air.reflectance(mu0).total() + below_air.transmittance(mu0);
+        CHECK(total < 1 + 1e-3);
+        CHECK(total > 0.99);
     }
     const auto rough_joint = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.5), pair,
                                                           {stratum::RoughDielectric<double>(0.05, 1.5, 1.4)},
@@ -205,10 +233,32 @@ TEST_CASE("a specular top over refracting joints and a rough bottom: the joints'
             CHECK(std::fabs(f - r) / r < 5.5e-2);
         }
         // (3) the ambient term by reciprocity, r_a(wo) = R_s(wo.z): read from the field at the normal it was 0.173 /
-        // 0.179 / 0.181 at M = 16 / 32 / 48 where R_s is 0.1185 / 0.1190 / 0.1191 (found by review)
+        // 0.179 / 0.181 at M = 16 / 32 / 48 where R_s is 0.1185 / 0.1190 / 0.1191, and so it stayed where the ambient
+        // term was asked for without the reflection (found by reviews)
+        LayerOptions o;
+        o.ordinates = m;
+        stratum::LayerRequest<double> ambient_only;
+        ambient_only.outputs = stratum::LayerOutput::ambient;
+        const auto alone = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.5), two, {SmoothDielectric<double>(1.5, 1.4)},
+                                                        stratum::RoughDielectric<double>(0.3, 1.4, 1.0), o, ambient_only);
+        // (4) evaluation with a Workspace allocates nothing, the ambient term included (it built a Workspace of its
+        // own; found by review)
+        LayeredSurface<double>::Workspace ws;
+        const auto evaluate = [&] {
+            double sum = 0;
+            for (double mu : {1.0, 0.7, 0.3})
+                sum += layer.ambient(direction(mu, 0), ws) + layer.subsurface_brdf(direction(mu, 0), direction(0.5, 2.0), ws) +
+                       layer.btdf(direction(mu, 0), Vec3<double>{0.6, 0.0, -0.8}, ws);
+            return sum;
+        };
+        const double first = evaluate();
+        const long before = allocations.load();
+        CHECK(evaluate() == first);
+        CHECK(allocations.load() == before);
         for (double mu : {1.0, 0.99, 0.5}) {
             CHECK(layer.ambient(direction(mu, 0)) == doctest::Approx(layer.reflectance(mu).subsurface).epsilon(1e-12));
             CHECK(layer.ambient(direction(mu, 0)) == doctest::Approx(reference.ambient(direction(mu, 0))).epsilon(1e-2));
+            CHECK(alone.ambient(direction(mu, 0)) == doctest::Approx(layer.ambient(direction(mu, 0))).epsilon(1e-12));
         }
     }
 }
