@@ -2812,9 +2812,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         }
         s.separate_direct_beam(scaled_tau, true_tau);
     }
-    if (detail::joints_mirror_the_beam(top, interior, bottom) &&
-        (detail::needs_reflected(request.outputs) || includes(request.outputs, LayerOutput::ambient)))  // 6b.
-        s.separate_joint_mirror(interior, slabs, stack);
+    if (detail::joints_mirror_the_beam(top, interior, bottom)) s.separate_joint_mirror(interior, slabs, stack);  // 6b.
     s.precompute_incidences();  // 7.
     if (request.tabulate_faces) s.tabulate_faces();  // 8.
     return s;
@@ -3528,6 +3526,9 @@ void LayeredSurface<Real>::separate_joint_mirror(const std::vector<Boundary<Real
                                                  const detail::PreparedStack<Real>& stack) {
     using detail::Matrix;
     const std::size_t m = q_.size(), count = stack.slabs.size();
+    // (whatever the outputs: the scale it sets, mirror_scale, applies to the transmission too, which came out
+    // otherwise as the unscaled field, T 0.206 where it is 0.255 with the reflection requested; found by review)
+    if (qb_.empty()) return;  // (no modes solved: the top's own reflection alone)
     joint_mirror_ = true;
     direct_tau_ = beam_tau_ = 0;
     for (std::size_t j = 0; j < count; ++j) {
