@@ -528,7 +528,8 @@ public:
         plain_ = build(gauss_legendre_half<Real>(options.ordinates));
     }
     /// The same face prepared for other options, sharing what does not depend on them: the entry transmittances
-    /// (tabulated as evaluations need them, 65 points of about 0.14 ms each for a rough face), which a convergence study over the ordinates or the
+    /// (tabulated as evaluations need them, 65 points of about 0.14 ms each for a rough face), which a convergence
+    /// study over the ordinates or the
     /// planner (planner.hpp) then builds once. Equal bit for bit to preparing other.boundary() afresh. Throws as the
     /// constructor.
     explicit PreparedBoundary(const PreparedBoundary& other, const LayerOptions& options)
@@ -1247,8 +1248,8 @@ public:
     /// reflectance(wo.z).subsurface (docs/physics.md section 6). Between specular faces it is computed so, with the
     /// beam a source at wo.z: read from the ordinates' field, the exit at a grazing wo (its Snell cosine beside the
     /// critical cosine, where the field varies steeply) was 26% off at 16 ordinates and 1.6% at 64 (found by review).
-    /// So too under a specular top over joints that refract and a rough bottom (with the subsurface reflection
-    /// requested, the joints' specular reflection is a delta there): read from the field at the normal, where the
+    /// So too under a specular top over joints that refract and a rough bottom (where the joints' specular
+    /// reflection is a delta, direct_reflectance): read from the field at the normal, where the
     /// joints' operators crowd the light onto the last ordinate, it was 0.17 where reflectance(1).subsurface is 0.119
     /// (1 | 1.5 | 1.4 over a rough 0.3 bottom, M = 16; found by review).
     Real ambient(Vec3<Real> wo, Workspace& ws) const {
