@@ -2402,12 +2402,9 @@ private:
     Real mirror_scale(Real mu_i, Workspace& ws) const {
         const Real in = top_face().transmittance_from_outside(mu_i), exact = joint_mirror(mu_i, true);
         entry(mu_i, ws, 1);  // (mode 0)
-        const std::size_t m = q_.size();
-        std::vector<Real>& mirror = ws.spread;  // (not ws.field: a caller may hold the field there)
-        mirror.assign(m, Real(0));
-        for (std::size_t n = 0; n < m; ++n)
-            for (std::size_t i = 0; i < m; ++i) mirror[n] += mirror_q_(n, i) * ws.c[i];
-        const Real rest = in - flux_out(mirror.data(), exit_top_);
+        Real discrete = 0;  // M_d = mirror_flux_ . c
+        for (std::size_t i = 0; i < q_.size(); ++i) discrete += mirror_flux_[i] * ws.c[i];
+        const Real rest = in - discrete;
         return rest > 0 && in - exact > 0 ? (in - exact) / rest : Real(1);
     }
 
@@ -2438,7 +2435,8 @@ private:
     bool joint_mirror_ = false;
     std::vector<SmoothDielectric<Real>> mirror_joints_;
     std::vector<Real> mirror_eta_, mirror_scaled_tau_, mirror_true_tau_;  // per slab
-    detail::Matrix<Real> mirror_q_;  // mode 0 of the part of Q_b taken out (scattering_scale)
+    // the flux out of the top of mode 0 of the part of Q_b taken out, per unit entry at each ordinate (mirror_scale)
+    std::vector<Real> mirror_flux_;
     bool first_pass_exact_ = false;  // one face rough, the other specular: the BTDF's first pass exact (with_exact_pass)
     bool first_reflection_exact_ = false;  // a specular top over a rough bottom: the BRDF's pass reflected once by it exact
     // The slabs those passes cross, in columns between the joints that refract (one where none does): each column's
@@ -3564,7 +3562,12 @@ void LayeredSurface<Real>::separate_joint_mirror(const std::vector<Boundary<Real
         detail::lu_solve(detail::lu_factor(detail::one_minus_product(detail::mode_matrix(top_ops_->R21(), static_cast<int>(k)), s)), a);
         const Matrix<Real> mirror = detail::multiply(s, a);
         for (std::size_t i = 0; i < m * m; ++i) qb_[k].data[i] -= mirror.data[i];
-        if (k == 0) mirror_q_ = mirror;
+        if (k != 0) continue;
+        std::vector<Real> column(m);
+        for (std::size_t i = 0; i < m; ++i) {
+            for (std::size_t n = 0; n < m; ++n) column[n] = mirror(n, i);
+            mirror_flux_.push_back(flux_out(column.data(), exit_top_));
+        }
     }
 }
 
