@@ -3387,6 +3387,8 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::dep
     if (beam_) return beam_depth_profile(mu_i);
     if (depth_ops_.empty()) return out;
     Workspace ws;
+    // The scattered light's scale (scattering_scale: the beam's spread between specular faces, or the joints' mirror
+    // under a specular top), as reflectance and transmittance take it: inside too, the light is what they account for.
     const Real scale = scattering_scale(mu_i, ws);
     entry(mu_i, ws);  // ws.c: mode 0 first
     const std::size_t m = q_.size();
@@ -3408,9 +3410,9 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::dep
                     down -= std::exp(-d.scaled_depth / q_.nodes[n]) * beam.bounces() * ws.c[n];
                     up -= beam.r23 * std::exp(-(2 * direct_tau_ - d.scaled_depth) / q_.nodes[n]) * beam.bounces() * ws.c[n];
                 }
-                down *= scale;
-                up *= scale;
             }
+            down *= scale;
+            up *= scale;
             fluence += two_pi * q_.weights[n] * (down + up);
             net += two_pi * q_.weights[n] * q_.nodes[n] * (down - up);
         }
