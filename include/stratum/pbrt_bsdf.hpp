@@ -11,10 +11,16 @@
 //   float cdf[nMu * nMu]: per row o, the running integral over mu_i of a_0(mu_i, mu_o) along the Catmull-Rom spline;
 //   int32 {offset, length}[nMu * nMu]: the series of pair (i, o) is coeffs[offset .. offset + length);
 //   float coeffs[nCoeffs].
-// Pair (i, o) = index o nMu + i (with 3 channels its series are Y, R, B one after another, each of its length), with mu_i = cos(-wi) (wi towards the light: mu_i < 0 for light from above) and
-// mu_o = cos(wo) (the viewer); reflection where mu_i mu_o < 0. Its series is that of f(wi, wo) |mu_i| in cos(k phi),
-// phi the azimuth between -wi and wo. pbrt-v3 multiplies transmission by eta^2 in radiance transport; the file
-// holds f in the library's (importance) convention, as pbrt-v3 expects.
+// Pair (i, o) = index o nMu + i (with 3 channels its series are Y, R, B one after another, each of its length), with
+// mu_i = cos(-wi) and mu_o = cos(wo) in pbrt-v3's FourierBSDF::f(wo, wi); reflection where mu_i mu_o < 0. Its series
+// is that of f |mu_i| in cos(k phi), phi the azimuth between -wi and wo, with f what pbrt-v3 returns in importance
+// transport, where wo points to where a light particle came from: f(wo -> wi), light arriving from wo. In radiance
+// transport (a camera path: wi towards the light) pbrt-v3 multiplies transmission by eta^2 (eta = 1 / eta_file
+// where mu_i > 0, eta_file where mu_i < 0), which by generalized reciprocity, f(a -> b) / n_b^2 = f(b -> a) / n_a^2,
+// turns it into f(wi -> wo). So a transmitted pair holds this library's f(w_i -> w_o) (light from the direction
+// w_i with cos(-w_i) = mu_i) times (n_i / n_o)^2: 1 / eta_file^2 for light from above, eta_file^2 from below.
+// (Holding f(w_i -> w_o) itself, as an earlier version did, a light particle crossing a 1 | 1.5 layer upwards in
+// pbrt-v3 left with 1.79 times the energy it brought: found by review.)
 // Not representable in this format: deltas (a smooth top's mirror reflection, the direct beam between specular
 // faces): they are left out, as pbrt-v3's FourierBSDF is glossy only.
 #pragma once
@@ -54,10 +60,12 @@ struct PbrtBsdfTable {
         return static_cast<int>(m);
     }
 
-    /// f(wi, wo) as pbrt-v3's FourierBSDF evaluates this table in importance transport, in the library's argument
-    /// order (wi towards the light, wo towards the viewer): Catmull-Rom weights in mu_i and mu_o on the grid, the
-    /// interpolated series, max(0, .) / |mu_i|; the luminance Y. With 3 channels and rgb given, also red, green
-    /// (1.39829 Y - 0.100913 B - 0.297375 R, as pbrt-v3 forms it) and blue, each >= 0. 0 outside the grid.
+    /// f(wi -> wo) for light arriving from wi, seen from wo (this library's argument order and importance
+    /// convention), as pbrt-v3's FourierBSDF::f(wo, wi) evaluates this table for a camera path (radiance
+    /// transport): Catmull-Rom weights in mu_i = -wi.z and mu_o = wo.z on the grid, the interpolated series,
+    /// max(0, .) / |mu_i|, times eta^2 for transmission (the header comment); the luminance Y. With 3 channels and
+    /// rgb given, also red, green (1.39829 Y - 0.100913 B - 0.297375 R, as pbrt-v3 forms it) and blue, each >= 0.
+    /// 0 outside the grid.
     double eval(Vec3<double> wi, Vec3<double> wo, double* rgb = nullptr) const;
 };
 
@@ -170,7 +178,12 @@ inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo, double* rgb)
     double value[3] = {0, 0, 0};
     for (int ch = 0; ch < channels; ++ch)
         for (int k = 0; k < m; ++k) value[ch] += a[static_cast<std::size_t>(ch * m + k)] * std::cos(k * phi);
-    const double scale = 1 / std::fabs(mu_i), y = value[0] > 0 ? value[0] * scale : 0;
+    double scale = 1 / std::fabs(mu_i);
+    if (mu_i * mu_o > 0) {  // transmission: pbrt-v3's factor in radiance transport
+        const double e = mu_i > 0 ? 1 / static_cast<double>(eta) : static_cast<double>(eta);
+        scale *= e * e;
+    }
+    const double y = value[0] > 0 ? value[0] * scale : 0;
     if (rgb && channels == 3) {
         const double r = value[1] * scale, bl = value[2] * scale;
         rgb[0] = std::fmax(r, 0.0);
@@ -182,10 +195,10 @@ inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo, double* rgb)
 
 /// The pbrt-v3 table of `table`: its grid of cosines mirrored to [-1, 1] with 0 twice (pairs on a 0 node are empty,
 /// so that pbrt's interpolation never mixes the hemispheres, as layerlab's files do), its tabulated lobes converted
-/// to the series of f |mu_i|, the rough top's reflection added as its own series, light from below from the
-/// table's second side (none for a one-sided table), eta = eta_below / eta_above. Deltas are left out. A table of
-/// three channels (linear red, green, blue) gives a file of three (pbrt-v3's Y, R, B); any other count, the
-/// table's luminance alone.
+/// to the series of f |mu_i| (transmission times (n_i / n_o)^2: the header comment), the rough top's reflection
+/// added as its own series, light from below from the table's second side (none for a one-sided table), eta =
+/// eta_below / eta_above. Deltas are left out. A table of three channels (linear red, green, blue) gives a file of
+/// three (pbrt-v3's Y, R, B); any other count, the table's luminance alone.
 template <class Real>
 PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
     PbrtBsdfTable out;
@@ -214,6 +227,9 @@ PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
             if (mu_i == 0 || mu_o == 0) continue;
             const bool from_below = mu_i > 0, transmitted = mu_i * mu_o > 0;
             const double ai = std::fabs(mu_i), ao = std::fabs(mu_o);
+            // (n_i / n_o)^2 for a transmitted pair (the header comment)
+            const double eta = static_cast<double>(table.eta_below()) / static_cast<double>(table.eta_above());
+            const double reciprocity = !transmitted ? 1.0 : from_below ? eta * eta : 1 / (eta * eta);
             // Tabulated: the series of f |mu_o|, times |mu_i| / |mu_o|; the grid's own nodes, so these are stored
             // values. b holds the channels' series one after another (at k, cap + k, 2 cap + k): the luminance, or
             // red, green, blue.
@@ -223,7 +239,7 @@ PbrtBsdfTable pbrt_bsdf_table(const TabulatedBSDF<Real>& table) {
                 const int lt = table.coefficients(from_below, transmitted, static_cast<Real>(ai), static_cast<Real>(ao),
                                                   a.data(), rgb ? ch : -1);
                 for (int k = 0; k < lt; ++k)
-                    b[static_cast<std::size_t>(ch * cap + k)] = static_cast<double>(a[static_cast<std::size_t>(k)]) * ai / ao;
+                    b[static_cast<std::size_t>(ch * cap + k)] = static_cast<double>(a[static_cast<std::size_t>(k)]) * ai / ao * reciprocity;
                 len = lt > len ? lt : len;
             }
             const auto& surface = table.surface(from_below);
