@@ -65,8 +65,8 @@ struct PbrtBsdfTable {
     /// transport): Catmull-Rom weights in mu_i = -wi.z and mu_o = wo.z on the grid, the interpolated series,
     /// max(0, .) / |mu_i|, times eta^2 for transmission (the header comment); the luminance Y. With 3 channels and
     /// rgb given, also red, green (1.39829 Y - 0.100913 B - 0.297375 R, as pbrt-v3 forms it) and blue, each >= 0.
-    /// 0 outside the grid.
-    double eval(Vec3<double> wi, Vec3<double> wo, double* rgb = nullptr) const;
+    /// 0 outside the grid. Allocation-free (each of the 16 pairs' series summed at phi, then weighted).
+    double eval(Vec3<double> wi, Vec3<double> wo, double* rgb = nullptr) const noexcept;
 };
 
 namespace detail {
@@ -153,31 +153,37 @@ int surface_coefficients(const RoughDielectric<Real>& surface, double mu_l, doub
 
 }  // namespace detail
 
-inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo, double* rgb) const {
+inline double PbrtBsdfTable::eval(Vec3<double> wi, Vec3<double> wo, double* rgb) const noexcept {
     if (rgb) rgb[0] = rgb[1] = rgb[2] = 0;
     const double mu_i = -wi.z, mu_o = wo.z;
     int fi = 0, fo = 0;
     double wgt_i[4], wgt_o[4];
     if (!detail::catmull_rom_weights(mu, mu_i, fi, wgt_i) || !detail::catmull_rom_weights(mu, mu_o, fo, wgt_o) || mu_i == 0)
         return 0;
-    const int n = size(), m = max_order();
-    std::vector<double> a(static_cast<std::size_t>(channels * m), 0.0);  // per channel, the interpolated series
+    // cos(phi) between the projections of -wi and wo (1 when either is along the normal)
+    const double ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
+    const double x = ri > 0 && ro > 0 ? std::fmin(std::fmax(-(wi.x * wo.x + wi.y * wo.y) / (ri * ro), -1.0), 1.0) : 1.0;
+    // The interpolated series at phi, per channel: each pair's series summed at phi (cos(k phi) by the recurrence
+    // cos((k + 1) phi) = 2 x cos(k phi) - cos((k - 1) phi)), weighted: the same as summing the interpolated one.
+    const int n = size();
+    double value[3] = {0, 0, 0};
     for (int b = 0; b < 4; ++b)
         for (int c = 0; c < 4; ++c) {
             const double w = wgt_i[c] * wgt_o[b];
             if (w == 0 || fo + b < 0 || fi + c < 0) continue;
             const std::size_t p = static_cast<std::size_t>((fo + b) * n + fi + c);
-            for (int ch = 0; ch < channels; ++ch)
-                for (int k = 0; k < length[p]; ++k)
-                    a[static_cast<std::size_t>(ch * m + k)] += w * coeffs[static_cast<std::size_t>(offset[p] + ch * length[p] + k)];
+            for (int ch = 0; ch < channels; ++ch) {
+                const float* a = coeffs.data() + offset[p] + ch * length[p];
+                double sum = 0, previous = x, current = 1;  // cos(-phi), cos(0)
+                for (int k = 0; k < length[p]; ++k) {
+                    sum += static_cast<double>(a[k]) * current;
+                    const double next = 2 * x * current - previous;
+                    previous = current;
+                    current = next;
+                }
+                value[ch] += w * sum;
+            }
         }
-    // cos(phi) between the projections of -wi and wo (1 when either is along the normal)
-    const double ri = std::hypot(wi.x, wi.y), ro = std::hypot(wo.x, wo.y);
-    const double x = ri > 0 && ro > 0 ? std::fmin(std::fmax(-(wi.x * wo.x + wi.y * wo.y) / (ri * ro), -1.0), 1.0) : 1.0;
-    const double phi = std::acos(x);
-    double value[3] = {0, 0, 0};
-    for (int ch = 0; ch < channels; ++ch)
-        for (int k = 0; k < m; ++k) value[ch] += a[static_cast<std::size_t>(ch * m + k)] * std::cos(k * phi);
     double scale = 1 / std::fabs(mu_i);
     if (mu_i * mu_o > 0) {  // transmission: pbrt-v3's factor in radiance transport
         const double e = mu_i > 0 ? 1 / static_cast<double>(eta) : static_cast<double>(eta);
