@@ -244,6 +244,30 @@ TEST_CASE("an angular tolerance doubles the ordinates until the angular estimate
     CHECK_THROWS_WITH_AS(solve_planned(smooth_slab, scene), doctest::Contains("angular_tolerance"), std::invalid_argument);
 }
 
+TEST_CASE("the layer's operators asked for: the angular estimate compares their series, not zeros") {
+    // The operators hold the BRDF's and the BTDF's modes, so their error is that of the two angular outputs. The
+    // solve kept did not hold the series the estimate compares (only the coarse one did), so that the estimate was 0
+    // and an angular tolerance of 0.05 was met at 8 ordinates (the BRDF and BTDF need 32); with the BRDF also asked
+    // it was 15.4, the BTDF's series against zeros (found by review).
+    const Material<double> smooth_slab{SmoothDielectric<double>(1.0, 1.4), {Slab<double>(0.9, 0.8, 1.0)}, {},
+                                       SmoothDielectric<double>(1.4, 1.0)};
+    SceneRequest<double> scene;
+    scene.incidence = std::vector<double>(1, 0.8);
+    scene.tolerance = 1e-2;
+    scene.outputs = LayerOutput::subsurface_reflection | LayerOutput::transmission;
+    const double angular = solve_planned(smooth_slab, scene).plan.angular_error;
+    REQUIRE(angular > 0.1);
+    for (const LayerOutput outputs : {LayerOutput::operators, LayerOutput::operators | LayerOutput::subsurface_reflection}) {
+        scene.outputs = outputs;
+        scene.angular_tolerance = 0;
+        CHECK(solve_planned(smooth_slab, scene).plan.angular_error == doctest::Approx(angular).epsilon(1e-12));
+        scene.angular_tolerance = 0.05;
+        const auto planned = solve_planned(smooth_slab, scene);
+        CHECK(planned.plan.options.ordinates == 32);
+        CHECK(planned.plan.angular_error <= 0.05);
+    }
+}
+
 TEST_CASE("stacks: the interior faces are prepared at every level too") {
     // A rough coat (n 1.5) on a slab of index 1.4 over a rough base into air: three different rough faces.
     const Material<double> stack{RoughDielectric<double>(0.2, 1.0, 1.5),
