@@ -557,6 +557,31 @@ TEST_CASE("the inversion works in float and long double") {
     CHECK(worst_l <= 1e-15);
 }
 
+TEST_CASE("the inversion converges for every A the exact F_dr gives (eta up to 1e4; found by review)") {
+    // With A large (k s >> 1 at the rational start) Halley's steps shrank s by ~10% each and the 12 allowed left
+    // R_d 0.37 off at eta = 1e4 (A = 3.8e11, double) and 0.5 at eta 360 in float; Newton's step is taken there now.
+    // R_d -> Dipole -> total_reflectance: measured within 2.2e-16 in double and 6.0e-8 in float (its A, R_d and
+    // the coefficients each rounded); bounds 4 eps and 4 eps.
+    std::vector<double> rds;
+    for (int i = 1; i < 200; ++i) rds.push_back(i / 200.0);
+    for (int e = 3; e <= 14; ++e) rds.push_back(1 - std::pow(10.0, -e / 2.0));
+    double worst_d = 0, worst_f = 0;
+    for (const double eta : {30.0, 100.0, 300.0, 1000.0, 2000.0, 5000.0, 1e4}) {
+        for (const double rd : rds) {
+            const double got = Dipole<double>::from_reflectance(rd, 1.0, eta, DiffuseFresnel::exact).total_reflectance();
+            worst_d = std::fmax(worst_d, std::fabs(got - rd));
+            const float rf = static_cast<float>(rd);
+            if (!(rf < 1.0f)) continue;
+            const float gf = Dipole<float>::from_reflectance(rf, 1.0f, static_cast<float>(eta), DiffuseFresnel::exact)
+                                 .total_reflectance();
+            worst_f = std::fmax(worst_f, static_cast<double>(std::fabs(gf - rf)));
+        }
+    }
+    MESSAGE("R_d round trip at large A: double " << worst_d << ", float " << worst_f);
+    CHECK(worst_d <= 4 * std::numeric_limits<double>::epsilon());
+    CHECK(worst_f <= 4 * std::numeric_limits<float>::epsilon());
+}
+
 TEST_CASE("from_reflectance keeps sigma_a accurate as Rd -> 1, where alpha' cannot resolve 1 - alpha'") {
     // For Rd = 1 - d, 1 - alpha' ~ d^2 is far below the spacing of doubles near 1, but s = sigma_tr / sigma_t'
     // is carried separately. Check: the closed form evaluated at the dipole's own s, as 1 - R_d in long double
@@ -598,9 +623,20 @@ TEST_CASE("Dipole: a boundary given as numbers and Hery's parameters are validat
     CHECK_THROWS_AS(AlphaPrimeTable<double>(DipoleBoundary<double>{1.3, 0.5}), std::invalid_argument);
     CHECK_THROWS_AS(Dipole<double>::from_albedo(0.5, 1.0, DipoleBoundary<double>{1.3, nan}), std::invalid_argument);
     CHECK_NOTHROW(Dipole<double>(0.1, 1.0, DipoleBoundary<double>{1.0, 1.0}));  // index matched: A = 1
-    // A = +inf where F_dr rounds to 1 (float, exact model, eta 1000): accepted, as from_eta gives it (found by review)
-    CHECK_NOTHROW(Dipole<float>(0.1f, 1.0f, 1000.0f, DiffuseFresnel::exact));
-    CHECK(std::isfinite(Dipole<float>(0.1f, 1.0f, 1000.0f, DiffuseFresnel::exact).Rd(0.5f)));
+    // F_dr within 1e-6 of 1 (float, exact model, eta 1000): A computed in double, finite (3.79e8), not +inf, whose
+    // total reflectance without absorption was NaN (1 it is), whose inversion of R_d = 1e-6 gave alpha' = 1 (1.13e-5)
+    // and whose table was NaN with max_error() 0 (found by review). +inf itself is refused.
+    const auto dense = DipoleBoundary<float>::from_eta(1000.0f, DiffuseFresnel::exact);
+    CHECK(dense.A == doctest::Approx(static_cast<float>(DipoleBoundary<double>::from_eta(1000.0, DiffuseFresnel::exact).A)).epsilon(1e-6));
+    CHECK(Dipole<float>(0.0f, 1.0f, dense).total_reflectance() == 1.0f);
+    CHECK(std::isfinite(Dipole<float>(0.1f, 1.0f, dense).Rd(0.5f)));
+    CHECK(alpha_prime_from_reflectance(1e-6f, dense) == doctest::Approx(1.13044e-5).epsilon(1e-4));
+    const AlphaPrimeTable<float> dense_table(dense);
+    CHECK(std::isfinite(dense_table(0.25f)));
+    CHECK(dense_table.max_error() > 0);
+    CHECK_NOTHROW(Dipole<float>::from_reflectance(0.5f, 1.0f, 1000.0f, DiffuseFresnel::exact));
+    CHECK_THROWS_WITH_AS(Dipole<float>(0.1f, 1.0f, DipoleBoundary<float>{1.3f, std::numeric_limits<float>::infinity()}),
+                         doctest::Contains("boundary.A"), std::invalid_argument);
     // A subnormal diffuse mean free path made sigma_t' = inf (refused by the coefficients' constructor), and R_d(r)
     // was 0 everywhere while total_reflectance() said 0.30.
     CHECK_THROWS_WITH_AS(Dipole<double>::from_albedo(0.5, 1e-310, 1.3), doctest::Contains("diffuse_mean_free_path"),

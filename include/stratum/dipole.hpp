@@ -75,20 +75,24 @@ struct DipoleBoundary {
             return {eta, (1 + f) / (1 - f)};
         }
         detail::require_refractive_index("eta", eta);
-        const Real f = fresnel_diffuse_reflectance(eta);
-        return {eta, (1 + f) / (1 - f)};
+        // In the wide type: for float, 1 - F_dr (~1e-6 at eta = 1000) rounded to 0 and A to +inf, whose profile
+        // and inversion were NaN (found by review); A itself fits (at most ~1e9, at eta = 1e4).
+        using W = detail::wide_t<Real>;
+        const W f = fresnel_diffuse_reflectance(static_cast<W>(eta));
+        return {eta, static_cast<Real>((1 + f) / (1 - f))};
     }
 };
 
 namespace detail {
 /// A boundary given as it is (DipoleBoundary is an aggregate): eta a refractive index ratio and A = (1 + F_dr) /
-/// (1 - F_dr) >= 1 (F_dr in [0, 1]; +inf where F_dr rounds to 1, as DipoleBoundary::from_eta gives for float at
-/// eta = 1000, whose profile is finite). A = -5 gave a total reflectance of 9.04 and A = NaN NaN (found by a review
-/// sweep). Throws std::invalid_argument naming the field.
+/// (1 - F_dr) >= 1 and finite (F_dr in [0, 1)). A = -5 gave a total reflectance of 9.04 and A = NaN NaN (found by a
+/// review sweep); A = +inf (F_dr = 1), which from_eta gave for float at eta = 1000 before it computed in double,
+/// makes R_d jump from 1 at alpha' = 1 to 1/2 just below it (no inversion), and NaN profiles and inversions (found
+/// by review). Throws std::invalid_argument naming the field.
 template <class Real>
 const DipoleBoundary<Real>& require_dipole_boundary(const DipoleBoundary<Real>& b) {
     require_refractive_index("boundary.eta", b.eta);
-    if (!(b.A >= 1)) throw_out_of_range("boundary.A", b.A, "[1, inf]");
+    if (!(b.A >= 1 && b.A <= std::numeric_limits<Real>::max())) throw_out_of_range("boundary.A", b.A, "[1, inf)");
     return b;
 }
 }  // namespace detail
@@ -125,7 +129,8 @@ STRATUM_HOST_DEVICE ReflectanceInS<Real> reflectance_in_s(Real s, Real k) noexce
         m1 = e1 - 1, m2 = e2 - 1;
     }
     const Real E = (e1 + e2) / 2, one_minus_E = -(m1 + m2) / 2;
-    const Real dE = -(e1 + (k + 1) * e2) / 2, d2E = (e1 + (k + 1) * (k + 1) * e2) / 2;
+    const Real ke2 = (k + 1) * e2;  // (then times k + 1 again: (k + 1)^2 alone overflows float from A ~ 1e19)
+    const Real dE = -(e1 + ke2) / 2, d2E = (e1 + (k + 1) * ke2) / 2;
     const Real s2_3 = s * s / 3, P = (1 - s2_3);
     return {P * E, one_minus_E + s2_3 * E, -Real(2) / 3 * s * E + P * dE,
             -Real(2) / 3 * E - Real(4) / 3 * s * dE + P * d2E, E, dE, d2E};
@@ -188,20 +193,25 @@ STRATUM_HOST_DEVICE InverseReflectance<Real> invert_reflectance(Real Rd, const D
     const Real c = (1 / m - 2 * sqrt3 + a) / (sqrt3 - 1 / m), b = sqrt3 * (1 + c) - a;
     Real s = std::fmin(std::fmax(t * (a + b * t) / (1 + c * t), lo), hi);
     // Halley converges cubically: after a step of size d the error is ~ d^3, so stop once (d / s)^3 < eps / 4096.
+    // Far from the root its correction h = newton R'' / (2 R') can be huge: with k s >> 1 the start lies far right
+    // of a root near s ~ t / k, where e^{-(k+1) s} is negligible in R but (k + 1)^2 e^{-(k+1) s} dominates R'', and
+    // Halley's steps shrank s by ~10% each, 12 of them leaving R_d 0.37 off at A = 3.8e11 (double, eta 1e4) and 0.13
+    // at A = 3.8e5 (float, eta 300; found by review). Newton's step is taken there instead: from the right of the
+    // convex R it lands left of the root (clamped to lo at worst), from where it climbs monotonically.
     constexpr Real tol3 = eps / 4096;
     Real E = 1;  // E at the final s by a Taylor step from the last evaluation (error ~ E''' d^3 / 6 < eps)
-    for (int iter = 0; iter < 12; ++iter) {
+    for (int iter = 0; iter < 64; ++iter) {
         const auto r = detail::reflectance_in_s(s, k);
         const Real f = upper ? t - r.one_minus_R : r.R - Rd;
-        const Real newton = f / r.dR;
-        const Real step = newton / (1 - newton * r.d2R / (2 * r.dR));
-        Real next = s - step;
+        const Real newton = f / r.dR, h = newton * r.d2R / (2 * r.dR);
+        const bool halley = std::fabs(h) < Real(0.5);
+        Real next = s - (halley ? newton / (1 - h) : newton);
         if (!(next >= lo && next <= hi)) next = s - newton;  // Newton from a convex function's left stays inside
         next = std::fmin(std::fmax(next, lo), hi);
         const Real delta = next - s, d = std::fabs(delta);
         E = r.E + delta * (r.dE + delta / 2 * r.d2E);
         s = next;
-        if (d * d * d <= tol3 * s * s * s || d <= eps) break;
+        if ((halley && d * d * d <= tol3 * s * s * s) || d <= eps * s || d == 0) break;
     }
     if (s * s < Real(1.5)) return {s, 1 - s * s / 3};  // alpha' > 1/2
     // alpha' <= 1/2: alpha' = Rd / E(s) keeps relative accuracy as Rd -> 0 (s is then near sqrt(3)).
