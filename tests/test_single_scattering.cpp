@@ -174,6 +174,12 @@ TEST_CASE("degenerate geometry and extreme distances give 0, never NaN") {
           1e-5 * ss.term(up, up, 0.5, 0.5, 1.0));
     const SingleScattering<long double> sl(0.5L, 1.0L, 0.9L, 1.3L);
     CHECK(std::isfinite(sl.sample_distance(0.5L)));
+    // sigma_tc at the horizon: +inf where wi_t.z = 0 (grazing incidence, where plane_parallel is 0), also with wo_t
+    // on it; it was NaN and inf (found by review).
+    const Vec3<double> horizon{1, 0, 0}, other{0, 1, 0};
+    CHECK(ss.sigma_tc(horizon, other) == std::numeric_limits<double>::infinity());
+    CHECK(ss.sigma_tc(horizon, up) == std::numeric_limits<double>::infinity());
+    CHECK(ss.sigma_tc(up, horizon) == 1.0);
 }
 
 TEST_CASE("bad medium parameters raise std::invalid_argument naming the value") {
@@ -190,6 +196,11 @@ TEST_CASE("bad medium parameters raise std::invalid_argument naming the value") 
     CHECK(message([] { SingleScattering<double>(0.5, 0.0, 0.0, 1.3); }).find("sigma_t = 0") != std::string::npos);
     CHECK(message([] { SingleScattering<double>(0.5, 1.0, 1.0, 1.3); }).find("g = 1") != std::string::npos);
     CHECK(message([] { SingleScattering<double>(0.5, 1.0, 0.0, -1.0); }).find("eta = -1") != std::string::npos);
+    // eta a refractive index ratio, [1e-4, 1e4] as elsewhere: 1e200 was accepted, and its square overflowed into an
+    // in-medium distance of 0 at normal incidence (found by review).
+    CHECK(message([] { SingleScattering<double>(0.5, 1.0, 0.0, 1e200); }).find("is outside the allowed range [0.0001, 10000]") !=
+          std::string::npos);
+    CHECK(SingleScattering<double>(0.5, 1.0, 0.0, 1e4).refracted_in_distance(2.0, {0, 0, 1}) == 2.0);
     CHECK(message([] { SingleScattering<double>(0.5, std::nan(""), 0.0, 1.3); }).find("sigma_t = nan") !=
           std::string::npos);
 }

@@ -60,12 +60,14 @@ Real refracted_distance(Real s_i, Real cos_i, Real eta) noexcept {
 template <class Real = double>
 class SingleScattering {
 public:
-    /// sigma_s in [0, sigma_t], sigma_t > 0 (1/length, finite), g in (-1, 1), eta = n_medium / n_outside > 0.
+    /// sigma_s in [0, sigma_t], sigma_t > 0 (1/length, finite), g in (-1, 1), eta = n_medium / n_outside in
+    /// [1e-4, 1e4] (a refractive index ratio, as elsewhere in the library: eta = 1e200 was accepted, and eta^2
+    /// overflowed into a distance of 0 at normal incidence; found by review).
     /// Throws std::invalid_argument naming the bad value.
     SingleScattering(Real sigma_s, Real sigma_t, Real g, Real eta)
         : sigma_t_(detail::require_positive("sigma_t", sigma_t)),
           sigma_s_(detail::require_closed("sigma_s", sigma_s, Real(0), sigma_t)),
-          eta_(detail::require_positive("eta", eta)),
+          eta_(detail::require_refractive_index("eta", eta)),
           phase_(g) {}
 
     Real sigma_s() const noexcept { return sigma_s_; }
@@ -104,9 +106,13 @@ public:
         return sigma_s_ / sigma_t_ * fresnel_transmittance * phase_.eval(-dot(wi_t, wo_t)) * std::exp(-sigma_t_ * si);
     }
 
-    /// sigma_tc = sigma_t (1 + G), G = |wo_t.z| / |wi_t.z| (Jensen's combined extinction; flat boundary).
+    /// sigma_tc = sigma_t (1 + G), G = |wo_t.z| / |wi_t.z| (Jensen's combined extinction; flat boundary); +inf
+    /// where wi_t.z = 0, the limit of grazing incidence (where plane_parallel is 0), wo_t on the horizon too (it
+    /// was 0 / 0 = NaN there; found by review).
     Real sigma_tc(const Vec3<Real>& wi_t, const Vec3<Real>& wo_t) const noexcept {
-        return sigma_t_ * (1 + std::fabs(wo_t.z) / std::fabs(wi_t.z));
+        const Real i = std::fabs(wi_t.z);
+        if (!(i > 0)) return std::numeric_limits<Real>::infinity();
+        return sigma_t_ * (1 + std::fabs(wo_t.z) / i);
     }
 
     /// The flat-boundary closed form of L_o / L_i = int integrand ds_o' = sigma_s F p / sigma_tc.
