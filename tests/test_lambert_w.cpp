@@ -70,9 +70,11 @@ TEST_CASE("W_-1 agrees with mpmath within 3 ulp in double over the whole domain"
     MESSAGE("W_-1 double: max error " << worst << " ulp over " << count << " arguments");
 }
 
-TEST_CASE("W_-1 agrees with mpmath within 2 ulp in float and 4 eps in long double") {
+TEST_CASE("W_-1 agrees with mpmath within 3 ulp in float and 4 eps in long double") {
     // Same reference at float-representable x (kind f). float: one rounding more than double's analysis allows
-    // for, measured 1.3 ulp. long double: the 30-digit reference is exact at this precision; measured 2.1 eps.
+    // for, measured 1.3 ulp here, but 2.39 over every float of [-1/e, -1e-3] (against long double; at
+    // x = -0x1.3d5806p-2, found by review: this said 2), checked below. long double: the 30-digit reference is
+    // exact at this precision; measured 2.1 eps.
     double worst_f = 0, worst_l = 0;
     for (const Row& r : load_reference()) {
         if (r.kind != 'f') continue;
@@ -84,8 +86,17 @@ TEST_CASE("W_-1 agrees with mpmath within 2 ulp in float and 4 eps in long doubl
                                                          std::numeric_limits<long double>::epsilon()));
     }
     MESSAGE("W_-1 float: max " << worst_f << " ulp; long double: max " << worst_l << " eps");
-    CHECK(worst_f <= 2.0);
+    CHECK(worst_f <= 3.0);
     CHECK(worst_l <= 4.0);
+    // Every 1024th float of [-1/e, -1e-3] and the worst of all of them (exhaustively 2.39 ulp, every 64th 2.30),
+    // against the long double evaluation (4 eps of long double: 2e-15 of a float ulp).
+    double worst_scan = 0;
+    int n = 0;
+    for (float x = -stratum::detail::InvE<float>::hi; x < -1e-3f; x = std::nextafter(x, 0.0f), ++n)
+        if (n % 1024 == 0 || x == -0x1.3d5806p-2f)
+            worst_scan = std::fmax(worst_scan, ulp_error(lambert_wm1(x), lambert_wm1(static_cast<long double>(x))));
+    MESSAGE("W_-1 float, scan of [-1/e, -1e-3]: max " << worst_scan << " ulp");
+    CHECK(worst_scan <= 3.0);
 }
 
 TEST_CASE("W_-1 satisfies its defining equation w e^w = x") {

@@ -24,7 +24,7 @@
 //
 // Accuracy (tests/test_lambert_w.cpp, against mpmath at the exact floating-point argument; asserted / measured):
 // double 3 / 1.5 ulp over the whole domain, including the 40 doubles next to -1/e and subnormal x; float
-// 2 / 1.3 ulp; long double 4 / 2.1 eps. Cost: 1-2 Fritsch steps (one log each) after the start (BM_dipole_sample_radius).
+// 3 / 2.39 ulp (every float of [-1/e, -1e-3] against long double); long double 4 / 2.1 eps. Cost: 1-2 Fritsch steps (one log each) after the start (BM_dipole_sample_radius).
 #pragma once
 
 #include <cmath>
