@@ -204,7 +204,7 @@ TEST_CASE("pbrt .bsdf: media of different index above and below, transmission in
     const auto slab = Slab<double>::from_transparency(0.9, 0.5, 0.5);
     const auto above = solve_layer(slab, RoughDielectric<double>(0.3, 1.0, 1.5), RoughDielectric<double>(0.3, 1.5, 1.5), o);
     const auto below = solve_layer(slab, RoughDielectric<double>(0.3, 1.5, 1.5), RoughDielectric<double>(0.3, 1.5, 1.0), o);
-    const TabulatedBSDF<double> table(above, below, 3e-3);
+    const TabulatedBSDF<double> table(above, below, 1e-2);
     const PbrtBsdfTable file = pbrt_bsdf_table(table);
     const int n = file.size();
     for (int row = 0; row < n; row += 5) {
@@ -232,7 +232,7 @@ TEST_CASE("pbrt .bsdf: media of different index above and below, transmission in
         scale = std::fmax(scale, a * std::fabs(wi.z * wo.z));
     }
     MESSAGE("transmission through 1 | 1.5: worst |df| |cos_i cos_o| " << worst << " (largest value " << scale << ")");
-    CHECK(worst <= 1e-3 * scale);  // (measured 3.9e-4 of it; the factor eta^2 = 2.25 missing, it was 1.3 times it)
+    CHECK(worst <= 1e-3 * scale);  // (measured 5.8e-4 of it; without the factor eta^2 = 2.25 it failed)
 }
 
 TEST_CASE("pbrt .bsdf: files pbrt-v3 would refuse are refused") {
