@@ -300,3 +300,38 @@ TEST_CASE("a specular top over a refracting joint and a rough bottom: inside, th
             }
         }
 }
+
+TEST_CASE("depths are solved whatever else is requested, and a tolerance does not drop the floor they reach") {
+    // (1) With the top face's reflection alone requested no mode was solved, and the profile was empty (found by
+    // review); it is the one every other request gives. (2) With a tolerance the semi-infinite shortcut dropped the
+    // floor under a thick slab while depths reached it: over a white floor (which absorbs nothing) the net flux at the
+    // floor was 2e-5 and the fluence 11 times low at tolerance 1e-3 (found by review); now as without a tolerance.
+    const Slab<double> slab(0.9, 0.5, 1.0);
+    LayerRequest<double> surface = at_depths({0.0, 0.5, 1.0}), all = surface;
+    surface.outputs = stratum::LayerOutput::surface_reflection;
+    for (const Boundary<double>& top : {Boundary<double>(SmoothDielectric<double>(1.0, 1.4)),
+                                        Boundary<double>(RoughDielectric<double>(0.3, 1.0, 1.4))}) {
+        const auto a = solve_layer(slab, top, SmoothDielectric<double>(1.4, 1.0), ordinates(8), surface).depth_profile(0.6);
+        const auto b = solve_layer(slab, top, SmoothDielectric<double>(1.4, 1.0), ordinates(8), all).depth_profile(0.6);
+        REQUIRE(a.size() == 3);
+        REQUIRE(b.size() == 3);
+        for (std::size_t j = 0; j < 3; ++j) {
+            CHECK(a[j].fluence == doctest::Approx(b[j].fluence).epsilon(1e-12));
+            CHECK(a[j].net_flux == doctest::Approx(b[j].net_flux).epsilon(1e-12));
+        }
+    }
+    const Slab<double> thick = Slab<double>::with_phase_moments(0.99, {1.0, 0.0, 0.1}, 60.0);
+    LayerRequest<double> exact = at_depths({0.0, 30.0, 59.0, 60.0}), tolerant = exact;
+    exact.outputs = tolerant.outputs = stratum::LayerOutput::reflectance;
+    tolerant.tolerance = 1e-3;
+    const Boundary<double> floor = Boundary<double>::lambertian(1.0, 1.4);
+    const auto a = solve_layer(thick, SmoothDielectric<double>(1.0, 1.4), floor, ordinates(16), exact).depth_profile(0.6);
+    const auto b = solve_layer(thick, SmoothDielectric<double>(1.0, 1.4), floor, ordinates(16), tolerant).depth_profile(0.6);
+    REQUIRE(b.size() == a.size());
+    for (std::size_t j = 0; j < a.size(); ++j) {
+        INFO("depth " << a[j].depth);
+        CHECK(b[j].fluence == doctest::Approx(a[j].fluence).epsilon(1e-12));
+        CHECK(std::fabs(b[j].net_flux - a[j].net_flux) < 1e-12);
+    }
+    CHECK(std::fabs(b.back().net_flux) < 1e-15);  // (the white floor absorbs nothing)
+}
