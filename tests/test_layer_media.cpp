@@ -164,7 +164,9 @@ TEST_CASE("phase moments are validated where the slab is built") {
     CHECK_THROWS_WITH_AS(Slab<double>::with_phase_moments(0.9, {1.0, 0.2, 1.5}, 1.0), doctest::Contains("moments[2]"), Catch);
     CHECK_THROWS_WITH_AS(Slab<double>::with_phase_moments(0.9, {1.0, std::nan("")}, 1.0), doctest::Contains("moments[1]"),
                          Catch);
-    CHECK_THROWS_WITH_AS(Slab<double>::with_phase_moments(0.9, {1.0, 1.0}, 1.0), doctest::Contains("g"), Catch);
+    // chi_1 = +-1 (a delta): named as the moment given, with g's range (it said "g = 1"; found by review)
+    CHECK_THROWS_WITH_AS(Slab<double>::with_phase_moments(0.9, {1.0, 1.0}, 1.0), doctest::Contains("moments[1] = 1 is outside the allowed range (-1, 1)"), Catch);
+    CHECK_THROWS_WITH_AS(Slab<double>::with_phase_moments(0.9, {1.0, -1.0}, 1.0), doctest::Contains("moments[1]"), Catch);
     CHECK_THROWS_WITH_AS(Slab<double>::with_phase_moments(1.5, rayleigh, 1.0), doctest::Contains("albedo"), Catch);
     const Slab<double> s = Slab<double>::with_phase_moments(0.9, rayleigh, 1.0);
     CHECK(s.g() == 0.0);

@@ -92,12 +92,16 @@ public:
     /// function normalized to 1 over the sphere is sum_l (2l + 1) chi_l P_l(cos theta) / (4 pi)): chi_0 = 1 and
     /// |chi_l| <= 1, as for any phase function; g = chi_1 (0 if only chi_0 is given) must lie in (-1, 1). Moments
     /// beyond those given are 0 (Rayleigh: {1, 0, 0.1}, exactly). The solver uses the first 2M (M ordinates;
-    /// delta-M, for g > 0, takes f = chi_2M when it is given and positive, docs/physics.md section 2).
+    /// delta-M, for g > 0, takes f = chi_2M when it is given, positive and below 1 and leaves every scaled moment
+    /// (chi_l - f) / (1 - f) in [-1, 1], and is off otherwise: docs/physics.md section 2).
     static Slab with_phase_moments(Real albedo, std::vector<Real> moments, Real optical_thickness) {
         if (moments.empty()) detail::fail_invalid_argument("stratum: moments is empty (chi_0 = 1 at least)");
         if (!(moments[0] == Real(1))) detail::throw_out_of_range("moments[0]", moments[0], "{1} (a normalized phase function)");
         for (std::size_t l = 1; l < moments.size(); ++l)
             detail::require_closed(("moments[" + std::to_string(l) + "]").c_str(), moments[l], Real(-1), Real(1));
+        // g = chi_1 must lie in (-1, 1) (a delta forward or backward): named as the moment given (it said g = 1).
+        if (moments.size() > 1 && !(std::fabs(moments[1]) < Real(1)))
+            detail::throw_out_of_range("moments[1]", moments[1], "(-1, 1) (g = chi_1)");
         Slab s(albedo, moments.size() > 1 ? moments[1] : Real(0), optical_thickness);
         s.moments_ = std::move(moments);
         return s;
