@@ -2721,9 +2721,15 @@ std::optional<LayeredSurface<Real>> LayeredSurface<Real>::solve_simpler(
     // A floor under slabs that let through less than 4 eps of the light changes what leaves the top by less than
     // that, but a bright floor under a (nearly) lossless slab makes the floor's coupling singular to rounding: a
     // non-absorbing slab of tau 3e16 over a white floor gave R = 7e259 (float: 8e17 at tau 1e8, g 0.8; found by a
-    // review sweep). Such a floor is solved as a black one (bottom() then says so), unless fields at depth are asked
-    // for, which the floor's trapped light reaches (README, known limitations).
-    if (bottom.lambertian() && bottom.floor_albedo() > 0 && request.depths.empty() && detail::opaque(slabs)) {
+    // review sweep). Such a floor is solved as a black one (bottom() then says so). Fields at depth, which the floor's
+    // trapped light reaches, cannot be had so: refused (they came out with the reflectance itself broken, R = 3e16
+    // in float at tau 1e8 over a white floor; found by review).
+    if (bottom.lambertian() && bottom.floor_albedo() > 0 && detail::opaque(slabs) && !request.depths.empty())
+        detail::fail_invalid_argument("stratum: request.depths over a Lambertian floor of albedo > 0 under a slab that "
+                                      "lets through less than 4 eps of the light (diffusion bound): the floor's coupling "
+                                      "is singular to rounding; solve without depths (the floor then acts as black), "
+                                      "or in a wider floating type");
+    if (bottom.lambertian() && bottom.floor_albedo() > 0 && detail::opaque(slabs)) {
         detail::PreparedOperators<Real> without_floor = prepared;  // (a prepared floor's operators are the bright one's)
         without_floor.bottom = nullptr;
         without_floor.bottom_entry = nullptr;
