@@ -399,8 +399,13 @@ struct FourierTable {
 /// 0.03, 0.6% for tau = 0; importance transport below 1e-4).
 ///
 /// Sides: built from one layer, the BSDF is one-sided (light from above, wi.z > 0; two_sided() is false, and
-/// wi.z < 0 gives 0 and invalid samples). Built from two, the second is the layer turned over (solved with its
-/// bottom face first and the indices swapped) and answers for light from below: all four combinations of sides.
+/// wi.z < 0 gives 0 and invalid samples). In radiance transport, where wi is the viewer, one exception: a viewer
+/// below seeing light from above through the layer gets its value from eval (generalized reciprocity), but pdf is 0
+/// and sample() fails there, as the table cannot sample the light's side from the viewer's (found by review): such
+/// light reaches the viewer through light sampling alone, and a path tracer misses what arrives there indirectly;
+/// build the table two-sided where viewers below matter. Built from two, the second is the layer turned over
+/// (solved with its bottom face first and the indices swapped) and answers for light from below: all four
+/// combinations of sides, sampled in both transport modes.
 /// Evaluation is noexcept, allocation-free and const (thread-safe); degenerate directions (NaN or infinite
 /// components, on the horizon) give 0 and invalid samples. Directions are expected to be unit vectors and are not
 /// normalized: a finite non-unit vector gives finite values >= 0 that mean nothing in particular.
