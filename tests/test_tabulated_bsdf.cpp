@@ -928,6 +928,14 @@ TEST_CASE("TabulatedBSDF: radiance mode on a one-sided table uses generalized re
         CHECK(s.value > 0);
     }
     CHECK(transmitted > 100);
+    // The viewer below, the light above: eval has the value (the arguments exchanged, light from above), but the
+    // one-sided table cannot sample the light's side from the viewer's: pdf 0 and no sample (the class comment).
+    const Vec3<double> viewer{0.8, 0.0, -0.6}, lamp = direction(0.8, 2.0);
+    CHECK(one.eval(viewer, lamp, TransportMode::radiance) == one.eval(lamp, viewer));
+    CHECK(one.eval(viewer, lamp, TransportMode::radiance) > 0);
+    CHECK(one.pdf(viewer, lamp, TransportMode::radiance) == 0);
+    CHECK_FALSE(one.sample(viewer, 0.3, 0.4, 0.5, TransportMode::radiance).valid());
+    CHECK(two.pdf(viewer, lamp, TransportMode::radiance) > 0);  // (two-sided: sampled)
 }
 
 TEST_CASE("TabulatedBSDF: exits near the horizon stay finite, and camera paths at grazing views keep the albedo (found by review)") {
