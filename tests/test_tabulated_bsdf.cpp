@@ -236,9 +236,10 @@ TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's f
     // the table, before the spread stopped extrapolating beyond the last ordinate, renderer sweep; 0.793 against
     // 0.741 before the spread's last cell reached to mu = 1); error(), the table against the layer's BTDF, cannot see
     // it, energy_error() does (measured 0.012 at mu = 1; 0.052 before). Strongly backward scattering (g = -0.95,
-    // README): 0.085.
+    // README): 0.085. Midway between the nodes it also sees the splines' own error in mu_i (Stam's skin at 1e-2:
+    // 1.4e-3; bound 2e-3), and where they cross a kink of the layer's fluxes (next test case).
     const TabulatedBSDF<double> good(skin(), 1e-2);
-    CHECK(good.energy_error() <= 1e-4);
+    CHECK(good.energy_error() <= 2e-3);
     LayerOptions o;
     o.ordinates = 16;
     const LayeredSurface<double> narrow = solve_layer(Slab<double>(1.0, 0.5, 1.0), RoughDielectric<double>(0.05, 1, 1.4),
@@ -251,6 +252,25 @@ TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's f
     const TabulatedBSDF<double> backward(
         solve_layer(Slab<double>(1.0, -0.95, 1.0), SmoothDielectric<double>(1, 1.4), SmoothDielectric<double>(1.4, 1), o), 1e-2);
     CHECK(backward.energy_error() > 0.05);
+}
+
+TEST_CASE("TabulatedBSDF::energy_error sees the splines cross a critical cosine (found by review)") {
+    // A non-absorbing slab of index 1 between glass: the top (1.5 | 1) reflects totally below its critical cosine
+    // 0.745, where the layer's R jumps to 1 with a kink; the lobes' splines in mu_i carry light across it, and the
+    // table's albedo reaches 1.10 at mu 0.74 and 1.25 at 0.745 (a white furnace of sample() measures the same). A
+    // known limitation (README); at the nodes alone energy_error() said 0.004, midway between them it says 0.068.
+    LayerOptions o;
+    o.ordinates = 8;
+    const auto fog = solve_layer(Slab<double>::from_transparency(1.0, 0.5, 0.9), SmoothDielectric<double>(1.5, 1.0),
+                                 SmoothDielectric<double>(1.0, 1.5), o);
+    const TabulatedBSDF<double> table(fog, 1e-2);
+    double excess = 0;  // the albedo's largest excess over 1 around the kink
+    for (double mu = 0.70; mu < 0.80; mu += 5e-4) {
+        const auto a = table.albedo(mu);
+        excess = std::fmax(excess, a.reflectance + a.transmittance - 1);
+    }
+    MESSAGE("albedo above 1 by up to " << excess << " near the critical cosine; energy_error() " << table.energy_error());
+    if (excess > 0.01) CHECK(table.energy_error() > excess / 4);  // (measured 0.25 and 0.068)
 }
 
 TEST_CASE("TabulatedBSDF: sample() follows pdf() (chi-square), rough and smooth faces, both sides") {

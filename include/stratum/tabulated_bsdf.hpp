@@ -503,11 +503,15 @@ public:
     Real error() const noexcept { return std::fmax(sides_[0]->error, sides_[1] ? sides_[1]->error : Real(0)); }
     /// The largest difference, as fractions of the incident flux, between the table's albedo (albedo(): what a white
     /// furnace measures of sample()) and the layer's own fluxes (reflectance(mu).total() with the surface lobe where
-    /// it was requested, transmittance(mu); the luminance's for several channels), at the grid's nodes but mu = 0,
-    /// for the lobes the layer was solved for. error() measures the table against the layer's BRDF and BTDF; this
-    /// measures the layer's BRDF and BTDF against its fluxes, which the discretization does not make agree
-    /// everywhere: light leaving through a nearly specular rough face near the normal (README, known limitations),
-    /// strongly backward-scattering media. R and T are compared apart: the table creates or loses up to their sum.
+    /// it was requested, transmittance(mu); the luminance's for several channels), at the grid's nodes but mu = 0
+    /// and midway between them, for the lobes the layer was solved for. error() measures the table against the
+    /// layer's BRDF and BTDF; this measures the layer's BRDF and BTDF against its fluxes, which the discretization
+    /// does not make agree everywhere: light leaving through a nearly specular rough face near the normal (README,
+    /// known limitations), strongly backward-scattering media; and the splines in the incidence across a critical
+    /// cosine, where the layer's fluxes have a kink (a smooth top from a denser medium, total internal reflection
+    /// at a far face): there the albedo can exceed 1 between the nodes (README, known limitations; at the nodes
+    /// alone this missed it, found by review). R and T are compared apart: the table creates or loses up to their
+    /// sum.
     Real energy_error() const noexcept {
         return std::fmax(sides_[0]->energy_error, sides_[1] ? sides_[1]->energy_error : Real(0));
     }
@@ -1459,8 +1463,8 @@ Real TabulatedBSDF<Real>::energy_mismatch(const Side& s, const std::vector<const
     const bool surface = includes(outputs, LayerOutput::surface_reflection);
     const bool transmission = includes(outputs, LayerOutput::transmission);
     Real worst = 0;
-    for (std::size_t j = 1; j < s.t.size(); ++j) {
-        const Real mu = detail::parameter_cosine(s.t[j]);
+    for (std::size_t j = 1; j < 2 * s.t.size() - 1; ++j) {  // (the nodes, and midway between them)
+        const Real mu = detail::parameter_cosine(j % 2 == 0 ? s.t[j / 2] : (s.t[j / 2] + s.t[j / 2 + 1]) / 2);
         const Albedos a = s.albedos(s.weights(mu), mu);
         LayerReal r = 0, t = 0;
         for (std::size_t c = 0; c < layers.size(); ++c) {
