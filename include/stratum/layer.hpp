@@ -25,6 +25,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -1063,11 +1064,20 @@ StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOper
 
 namespace detail {
 
+// Serial numbers for BeamSolution: a Workspace keys the slab responses it caches by them (keyed by the address, a
+// layer solved where a freed one had been took the freed one's responses: BRDF 0 where it is 0.0035; found by review).
+inline std::uint64_t next_beam_serial() noexcept {
+    static std::atomic<std::uint64_t> serial{0};
+    return ++serial;
+}
+
 /// Between specular faces around slabs joined by index-matched faces, the beam as a source (detail/beam_source.hpp):
 /// each slab's beam source (top to bottom) and, per mode, the LU factors of the diffuse field's system
-/// (LayeredSurface::beam_field), with the faces' reflectances from inside at the ordinates.
+/// (LayeredSurface::beam_field), with the faces' reflectances from inside at the ordinates; and a serial number no
+/// other BeamSolution of the program has had (next_beam_serial).
 template <class Real>
 struct BeamSolution {
+    std::uint64_t serial = next_beam_serial();
     std::vector<SlabBeam<Real>> slabs;
     std::vector<LU<Real>> lu;  // per mode; no factors where nothing makes a diffuse field
     std::vector<Real> r21, r23;
@@ -1120,8 +1130,8 @@ public:
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
         std::vector<detail::BeamResponse<Real>> beam_y[2];  // per side (reflection, transmission), per slab
-        struct {  // what beam_y[side] holds: the layer's beam source, the exit cosine, the modes
-            const void* owner = nullptr;
+        struct {  // what beam_y[side] holds: the layer's beam source (its serial number), the exit cosine, the modes
+            std::uint64_t owner = 0;
             Real mu_o = -1;
             int modes = 0;
         } beam_y_key[2];
@@ -2111,11 +2121,11 @@ private:
         // (the slabs' responses to a beam at the exit cosines: the same for every incidence and azimuth)
         std::vector<detail::BeamResponse<Real>>& at_y = ws.beam_y[transmitted ? 1 : 0];
         auto& key = ws.beam_y_key[transmitted ? 1 : 0];
-        if (key.owner != beam_.get() || key.mu_o != mu_o || key.modes < f.modes) {
+        if (key.owner != beam_->serial || key.mu_o != mu_o || key.modes < f.modes) {
             at_y.resize(count);
             for (std::size_t j = 0; j < count; ++j)
                 if (y[j] > 0) beam_->slabs[j].respond(y[j], f.modes, at_y[j], ws.scratch);
-            key = {beam_.get(), mu_o, f.modes};
+            key = {beam_->serial, mu_o, f.modes};
         }
         const Real two_pi = 2 * detail::pi_v<Real>;
         std::vector<Real>& up = ws.path_up;
