@@ -350,6 +350,22 @@ TEST_CASE("requests: each shortcut agrees with the full solution") {
             CHECK(worst <= tol * peak);
         }
     }
+    SUBCASE("the layer's operators alone with a tolerance: the modes the BRDF and BTDF they carry need") {
+        // The mode cut measured the BRDF's and BTDF's fields only, and with the operators alone it measured nothing:
+        // every mode was negligible and the solve stopped after 3 (of 16 at 8 ordinates, 24 at 12, where mode 3's
+        // entries are 0.34 of mode 0's; found by review). The operators now count as both outputs.
+        for (const double tol : {1e-2, 1e-3}) {
+            LayerRequest<double> r;
+            r.tolerance = tol;
+            r.outputs = LayerOutput::operators;
+            const auto cut = solve_layer(slab, top, bottom, with_ordinates(12), r);
+            r.outputs = LayerOutput::operators | LayerOutput::subsurface_reflection | LayerOutput::transmission;
+            const auto angular = solve_layer(slab, top, bottom, with_ordinates(12), r);
+            INFO("tolerance " << tol);
+            CHECK(cut.modes() > 3);
+            CHECK(cut.modes() == angular.modes());
+        }
+    }
     SUBCASE("a thick slab is solved as semi-infinite when transmission is not requested") {
         // The diffuse field decays as e^{-lambda_min tau} (lambda_min ~ 0.3 here), so at tau = 200 the slab is
         // semi-infinite to 1e-9: the shortcut must give exactly the tau = infinity solution and differ from the

@@ -265,7 +265,24 @@ TEST_CASE("the layer's operators asked for: the angular estimate compares their 
         const auto planned = solve_planned(smooth_slab, scene);
         CHECK(planned.plan.options.ordinates == 32);
         CHECK(planned.plan.angular_error <= 0.05);
+        // the plan's request is what its surface was solved for (the angular outputs added)
+        CHECK(planned.surface.outputs() == planned.plan.request.outputs);
     }
+    // The operators carry reflection too: over a floor (transmittance 0 at every level) the levels compared only
+    // the transmittance, saw no change and stopped at 8 ordinates with an estimated error of 0 where R is 1.4e-4 off
+    // at a tolerance of 1e-5 (found by review); now as for the operators with the reflectance.
+    const Material<double> floored{RoughDielectric<double>(0.3, 1.0, 1.4), {Slab<double>(0.9, 0.8, 1.0)}, {},
+                                   Boundary<double>::lambertian(0.5, 1.4)};
+    SceneRequest<double> deep;
+    deep.tolerance = 1e-5;
+    deep.max_ordinates = 64;
+    deep.outputs = LayerOutput::operators;
+    const auto alone = solve_planned(floored, deep);
+    deep.outputs = LayerOutput::operators | LayerOutput::reflectance;
+    const auto with_reflectance = solve_planned(floored, deep);
+    CHECK(alone.plan.options.ordinates > 8);
+    CHECK(alone.plan.estimated_error > 0);
+    CHECK(alone.plan.options.ordinates == with_reflectance.plan.options.ordinates);
 }
 
 TEST_CASE("stacks: the interior faces are prepared at every level too") {
