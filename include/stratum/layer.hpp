@@ -140,10 +140,12 @@ struct LayerRequest {
     /// Modes beyond this are not solved (0 = no cap beyond LayerOptions::modes).
     int max_modes = 0;
     /// 0: everything exact to the discretization. > 0: (a) modes are solved in order and the loop stops
-    /// after two consecutive modes whose operators are below tolerance relative to mode 0 (rough faces not prepared
-    /// are built for the modes it is expected to need, and for all where the loop goes on: docs/physics.md
-    /// section 6); (b) a slab with e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode) is solved
-    /// as semi-infinite when neither transmission nor transmittance is requested; (c) rough faces built for the solve
+    /// after two consecutive modes whose operators are below tolerance relative to mode 0 (the subsurface BRDF's and
+    /// the BTDF's coefficients at the ordinates, for the outputs requested, the layer's operators counting as both;
+    /// between specular faces the slabs' diffuse operators; rough faces not prepared are built for the modes it is
+    /// expected to need, and for all where the loop goes on: docs/physics.md section 6); (b) a slab with
+    /// e^{-lambda_min tau} < tolerance (lambda_min: the slowest diffuse mode) is solved as semi-infinite when neither
+    /// transmission, transmittance nor depths are requested; (c) rough faces built for the solve
     /// (not prepared ones) take their integrals no finer than the tolerance needs: LayerOptions::hemispherical_nodes
     /// and ::azimuthal_points capped at 9 and 12 from 1e-2, 12 and 12 from 1e-3 (integrals_for_tolerance: their
     /// errors stay 35 times or more inside the tolerance).
