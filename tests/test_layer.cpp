@@ -655,6 +655,11 @@ TEST_CASE("bad input is rejected with a message naming the parameter") {
     r.tolerance = 0;
     r.incidence = {0.0};
     CHECK_THROWS_WITH(solve_layer(slab, top, bottom, with_ordinates(4), r), doctest::Contains("request.incidence"));
+    // Bits beyond LayerOutput::all were accepted silently; a floor's index was named eta_above (found by review).
+    r.incidence.clear();
+    r.outputs = static_cast<LayerOutput>(1024u);
+    CHECK_THROWS_WITH(solve_layer(slab, top, bottom, with_ordinates(4), r), doctest::Contains("request.outputs = 1024"));
+    CHECK_THROWS_WITH(Boundary<double>::lambertian(0.5, -1.0), doctest::Contains("eta = -1"));
 }
 
 TEST_CASE("light from below is outside a LayeredSurface's domain: 0 from every function, not the top face's inner reflection") {

@@ -207,6 +207,7 @@ public:
     /// nothing is transmitted. Only the bottom of a layer or stack. Throws std::invalid_argument for albedo outside
     /// [0, 1] or eta outside [1e-4, 1e4].
     static Boundary lambertian(Real albedo, Real eta = Real(1)) {
+        detail::require_refractive_index("eta", eta);  // (named as here: the face's check said eta_above)
         Boundary b(SmoothDielectric<Real>(eta, eta));
         b.floor_albedo_ = detail::require_closed("albedo", albedo, Real(0), Real(1));
         return b;
@@ -813,6 +814,10 @@ void validate_stack(const Boundary<Real>& top, const std::vector<Slab<Real>>& sl
                                   format_value(above) + " above it, " + format_value(below) + " below it");
         if (i < interior.size()) above = interior[i].eta_below();
     }
+    // (bits beyond LayerOutput::all were accepted and meant nothing; found by review)
+    if ((static_cast<unsigned>(request.outputs) & ~static_cast<unsigned>(LayerOutput::all)) != 0)
+        throw_out_of_range("request.outputs", static_cast<long long>(static_cast<unsigned>(request.outputs)),
+                           "combinations of LayerOutput's flags, [0, 127]");
     for (std::size_t j = 0; j < request.incidence.size(); ++j)
         require_closed(("request.incidence[" + std::to_string(j) + "]").c_str(), request.incidence[j],
                        std::nextafter(Real(0), Real(1)), Real(1));
