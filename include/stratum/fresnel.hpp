@@ -26,15 +26,20 @@ namespace stratum {
 ///   r_p = (eta^2 cos_i - m) / (eta^2 cos_i + m)    = k2 ((eta^2 + 1) cos_i^2 - 1) / (eta^2 cos_i + m)^2
 ///   F = (r_s^2 + r_p^2) / 2.
 /// The right-hand forms (numerators multiplied out) keep full relative accuracy as eta -> 1, where the
-/// differences on the left cancel; k2 is formed as (eta - 1)(eta + 1) for the same reason. eta = 1 gives
-/// exactly 0 at every angle; total internal reflection and grazing incidence (cos_i = 0) give 1.
+/// differences on the left cancel; k2 is formed as (eta - 1)(eta + 1) for the same reason, and for cos_i < 0
+/// (the light on the other side: the index ratio 1 / eta) as (1 - eta)(1 + eta) / eta^2, not from the rounded
+/// 1 / eta (which made F 2e-4 off at eta = 1 - 1e-12, 23% at 1 - 1e-15; found by review). eta = 1 gives exactly 0
+/// at every angle; total internal reflection and grazing incidence (cos_i = 0) give 1.
 template <class Real>
 STRATUM_HOST_DEVICE Real fresnel_dielectric(Real cos_i, Real eta) noexcept {
+    Real k2;
     if (cos_i < 0) {
         cos_i = -cos_i;
+        k2 = (Real(1) - eta) * (Real(1) + eta) / (eta * eta);
         eta = Real(1) / eta;
+    } else {
+        k2 = (eta - Real(1)) * (eta + Real(1));
     }
-    const Real k2 = (eta - Real(1)) * (eta + Real(1));
     const Real m2 = cos_i * cos_i + k2;
     // TIR, and grazing incidence (exactly 1 for eta != 1: the formulas below round to 1 +- an ulp there).
     if (m2 <= 0 || cos_i == 0) return eta == Real(1) ? Real(0) : Real(1);
