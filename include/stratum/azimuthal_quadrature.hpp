@@ -98,8 +98,9 @@ struct AzimuthalFeatures {
 template <class Real = double>
 class AzimuthalQuadrature {
 public:
-    /// points_per_panel >= 2 (default 24: measured <= 1e-12 relative on the rough-interface kernels, ~1e-15
-    /// on analytic lobes; 16 gives ~1e-8 with ~10% fewer samples);
+    /// points_per_panel >= 2 (default 24: measured <= 1e-12 relative on the rough-interface kernels at 48 modes,
+    /// up to 1e-7 with one mode, whose rule has one panel; ~1e-15 on analytic lobes; 16 gives ~1e-8 with ~10%
+    /// fewer samples);
     /// points_per_period in [2, 1e6]: sampling density of cos((K - 1) phi) in the uniform panels; the default
     /// 2 pi gives panels of length n / (K - 1), on which n-point Gauss integrates cos((K - 1) phi) to ~1e-16
     /// (it is exact to degree 2n - 1; measured: 1e-16 at (K - 1) h / 2 = n / 2, 3e-11 at 3n / 4).

@@ -79,7 +79,9 @@ namespace stratum {
 //    needs exact beams should keep the unscattered beam analytic (docs/physics.md section 6).
 //
 // Accuracy of the rough operators. The phi integral is controlled by AzimuthalQuadrature (measured: <= 4e-12
-// relative for sigma in {1, 0.3, 0.02} with the default 24 points per panel, ~1e-15 for analytic lobes).
+// relative for sigma in {1, 0.3, 0.02} with the default 24 points per panel and 48 modes, ~1e-15 for analytic
+// lobes; with few modes the rule has few panels, and a branch point of F near phi = 0 off the real axis is felt:
+// 1.0e-7 relative with one mode at sigma 1, n 1 | 1.4, M = 24, found by review; coefficients() gives more).
 // The mu direction is sampled only at the ordinates: energy (flux-weighted column sums, see the top of this
 // file) matches the hemispherical totals only when the lobe is wide compared with the ordinate spacing
 // (sigma = 0.3, n 1 | 1.4: max error 3e-4 (T12) and 2e-3 (R21, TIR onset) at M = 24, 8e-6 and 4e-4 at
@@ -260,9 +262,15 @@ public:
         }
         if (interface.smooth()) {
             // sigma below RoughDielectric::smooth_sigma: the BSDF is a pair of deltas (brdf and btdf return 0),
-            // so the exact specular representation of the SmoothDielectric it equals (default transmission).
+            // so the exact specular representation of the SmoothDielectric it equals: with the renormalization, the
+            // flux-conserving one, which keeps its promise of energy per column (each column's total split between
+            // the two ordinates around its image, as the renormalized lobe nearly is as sigma -> 0); the default
+            // (pointwise) transmission broke it below smooth_sigma, by 4.5 at M = 8 (found by review).
             *this = InterfaceOperators(SmoothDielectric<Real>(interface.eta_above(), interface.eta_below()),
-                                       ordinates, modes);
+                                       ordinates, modes,
+                                       renormalization == Renormalization::hemispherical_totals
+                                           ? SpecularTransmission::flux_conserving
+                                           : SpecularTransmission::pointwise);
             return;
         }
         if (interface.eta_above() > interface.eta_below()) {
