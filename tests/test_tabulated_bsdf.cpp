@@ -249,9 +249,11 @@ TEST_CASE("TabulatedBSDF::energy_error: the table's albedo against the layer's f
     CHECK(gap > 0.008);
     CHECK(bad.energy_error() >= gap);
     CHECK(bad.energy_error() <= gap + 2e-3);  // (the worst node is at or next to the normal)
+    // (g = -0.95: 0.036 since the beam's phase keeps its first moment where the energy alone was kept before,
+    // beam_source.hpp; 0.085 then)
     const TabulatedBSDF<double> backward(
         solve_layer(Slab<double>(1.0, -0.95, 1.0), SmoothDielectric<double>(1, 1.4), SmoothDielectric<double>(1.4, 1), o), 1e-2);
-    CHECK(backward.energy_error() > 0.05);
+    CHECK(backward.energy_error() > 0.02);
 }
 
 TEST_CASE("TabulatedBSDF::energy_error sees the splines cross a critical cosine (found by review)") {

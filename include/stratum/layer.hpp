@@ -118,7 +118,10 @@ struct LayerOptions {
     /// at 16 ordinates (tests/test_layer_intensity.cpp). The IMS is an approximation and not reciprocal.
     /// The forward peak's single scattering, which reflectance() and transmittance() count in the delta-M beam
     /// (forward_peak_*), is then in brdf and btdf as well: their integrals exceed the fluxes by it. Off: brdf and
-    /// btdf integrate to the fluxes (and fourier_coefficients, which never include it, give them).
+    /// btdf integrate to the fluxes (and fourier_coefficients, which never include it, give them) to the
+    /// discretization's error: one slab between smooth faces on the split rule 1.75e-3 at M = 8, 2e-6 at 16; on one
+    /// half-range rule there (critical_split = false) far less well, 6% at M = 16 and 33% at 4, whose exit at a true
+    /// angle meets the Fresnel factor's kink between the ordinates (found by review).
     bool single_scattering_correction = false;
 };
 

@@ -148,10 +148,17 @@ public:
         Real sum = 0;
         for (std::size_t m = 0; m < m_size; ++m) sum += w_[m] * (same[m] + opposite[m]);
         const Real tolerance = Real(64) * Real(m_size) * std::numeric_limits<Real>::epsilon();
-        if (!(sum > 0) || (!clamped && !(std::fabs(sum / 2 - 1) > tolerance))) return;  // the rule integrates it exactly
+        // (the rule integrates it exactly: no rescaling. Its first moment it does not, and where the first value is
+        // clamped the rescaling switches on with a jump of that error: 6.4e-5 in R at M = 4, g 0.95, 1.5e-7 at M = 8,
+        // index-matched faces; found by review, not changed: DISORT's equal-stream intensities are matched unscaled.)
+        if (!(sum > 0) || (!clamped && !(std::fabs(sum / 2 - 1) > tolerance))) return;
         // p'(x, +-mu) = p(x, +-mu) (alpha +- beta mu) with sum_m w_m (p'+ + p'-) = 2 (energy) and
         // sum_m w_m mu_m (p'+ - p'-) = 2 chi_1 x (the scattered light's mean cosine along the normal: how much goes
-        // forward): a 2 x 2 system; energy alone (beta = 0) where that would make a value negative.
+        // forward): a 2 x 2 system. Where that would make a value negative (alpha < |beta|), the energy with the
+        // factors on the edge of that, alpha = |beta| (the sign of the system's beta), continuous with it there.
+        // (Energy alone, beta = 0, was a jump: R of g 0.99, tau 1, M = 16 between index-matched faces 0.0016 at
+        // mu 0.99978 and 0.0049 at 0.99979, 0.0052 at the normal where the converged value is 0.0020; found by
+        // review.)
         Real a11 = 0, a12 = 0, a22 = 0;
         for (std::size_t m = 0; m < m_size; ++m) {
             a11 += w_[m] * (same[m] + opposite[m]);
@@ -162,7 +169,16 @@ public:
         Real alpha = 2 / sum, beta = 0;
         if (det > 0) {
             const Real a = (2 * a22 - a12 * b2) / det, b = (a11 * b2 - 2 * a12) / det;
-            if (a - std::fabs(b) >= 0) alpha = a, beta = b;  // (mu <= 1: both factors >= 0)
+            if (a - std::fabs(b) >= 0) {  // (mu <= 1: both factors >= 0)
+                alpha = a;
+                beta = b;
+            } else {  // alpha = |beta|, energy: |beta| (a11 + sign(beta) a12) = 2 (a11 >= |a12|: positive)
+                const Real edge = b > 0 ? a11 + a12 : a11 - a12;
+                if (edge > 0) {
+                    alpha = 2 / edge;
+                    beta = b > 0 ? alpha : -alpha;
+                }
+            }
         }
         for (std::size_t m = 0; m < m_size; ++m) same[m] *= alpha + beta * mu_[m], opposite[m] *= alpha - beta * mu_[m];
     }
