@@ -211,7 +211,7 @@ STRATUM_HOST_DEVICE InverseReflectance<Real> invert_reflectance(Real Rd, const D
         const Real delta = next - s, d = std::fabs(delta);
         E = r.E + delta * (r.dE + delta / 2 * r.d2E);
         s = next;
-        if ((halley && d * d * d <= tol3 * s * s * s) || d <= eps * s || d == 0) break;
+        if ((halley && d * d * d <= tol3 * s * s * s) || d <= eps * s) break;
     }
     if (s * s < Real(1.5)) return {s, 1 - s * s / 3};  // alpha' > 1/2
     // alpha' <= 1/2: alpha' = Rd / E(s) keeps relative accuracy as Rd -> 0 (s is then near sqrt(3)).

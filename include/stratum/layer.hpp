@@ -3225,12 +3225,14 @@ Real LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real
     using detail::Matrix;
     const std::size_t m = q_.size();
     const Matrix<Real> t12 = detail::mode_matrix(top_ops_->T12(), k);
-    auto size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner) {
-        const Matrix<Real> x = detail::multiply(exit, detail::multiply(inner, t12));
+    auto largest = [&](const Matrix<Real>& x) {  // (2 - delta_k0) max |x_nj| / (w_j mu_j)
         Real big = 0;
         for (std::size_t n = 0; n < m; ++n)
             for (std::size_t j = 0; j < m; ++j) big = std::fmax(big, std::fabs(x(n, j)) / (q_.weights[j] * q_.nodes[j]));
         return big * (k == 0 ? Real(1) : Real(2));
+    };
+    auto size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner) {
+        return largest(detail::multiply(exit, detail::multiply(inner, t12)));
     };
     const bool operators = includes(outputs_, LayerOutput::operators) && !whole_.empty();
     Real size_k = 0;
@@ -3239,10 +3241,7 @@ Real LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real
     if (detail::needs_transmitted(outputs_)) {
         size_k = std::fmax(size_k, size(detail::as_matrix(m, bottom.transmission_down), qe_.back()));
     } else if (operators) {
-        const Matrix<Real> x = detail::as_matrix(m, whole_.back().transmission_down);
-        for (std::size_t n = 0; n < m; ++n)
-            for (std::size_t j = 0; j < m; ++j)
-                size_k = std::fmax(size_k, std::fabs(x(n, j)) / (q_.weights[j] * q_.nodes[j]) * (k == 0 ? Real(1) : Real(2)));
+        size_k = std::fmax(size_k, largest(detail::as_matrix(m, whole_.back().transmission_down)));
     }
     return size_k;
 }

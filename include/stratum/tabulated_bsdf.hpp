@@ -1409,13 +1409,12 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
         (w == 0 ? s.reflection : s.transmission) = detail::pack_table(s.t, s.jacobian, series, orders[w]);
     }
     const std::size_t nodes = s.t.size();
-    auto at = [&](std::size_t j) { return static_cast<L>(detail::parameter_cosine(s.t[j])); };
     if (s.surface) {  // for choosing lobes, and albedo(); at node 0 the value at node_incidence, as the lobes have it
         // (it held node 1's, and albedo() missed the top's growing reflectance towards grazing: 0.554 for 0.593 at
         // mu 0.001 under a rough 0.2 top; found by review)
         s.surface_albedo.resize(nodes);
         for (std::size_t j = 0; j < nodes; ++j)
-            s.surface_albedo[j] = static_cast<Real>(layer.reflectance(j == 0 ? detail::node_incidence<L>(s.t, 0) : at(j)).surface);
+            s.surface_albedo[j] = static_cast<Real>(layer.reflectance(detail::node_incidence<L>(s.t, j)).surface);
     }
     bool beams = false;
     for (const LayeredSurface<L>* l : layers)
