@@ -495,3 +495,26 @@ TEST_CASE("randomized sweep: the planner's error estimate bounds the true error 
     CHECK(met >= count / 2);  // (a test that could pass with every plan giving up would not test the estimate)
     CHECK(within >= 0.95 * met);
 }
+
+TEST_CASE("slabs joined by a refracting face: the levels start at 8 ordinates (4 are refused there)") {
+    // glass | epidermis | dermis-like: 1 | 1.5 | 1.4 | 1 with smooth faces (detail::require_ordinates_for_joints).
+    const Material<double> glass_over_tissue{SmoothDielectric<double>(1.0, 1.5),
+                                             {Slab<double>(0.0, 0.0, 0.1), Slab<double>(0.95, 0.8, 2.0)},
+                                             {SmoothDielectric<double>(1.5, 1.4)},
+                                             SmoothDielectric<double>(1.4, 1.0)};
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+    scene.incidence.push_back(0.7);
+    scene.tolerance = 1e-2;
+    const auto planned = solve_planned(glass_over_tissue, scene);
+    REQUIRE(!planned.plan.ordinates_tried.empty());
+    CHECK(planned.plan.ordinates_tried.front() == 8);
+    CHECK(planned.plan.options.ordinates >= 16);
+    // Its answer against a fine solve at the tolerance.
+    LayerOptions fine;
+    fine.ordinates = 64;
+    const auto reference = solve_stack<double>(glass_over_tissue.top, glass_over_tissue.slabs, glass_over_tissue.interior,
+                                               glass_over_tissue.bottom, fine);
+    CHECK(std::fabs(planned.surface.reflectance(0.7).total() - reference.reflectance(0.7).total()) < scene.tolerance);
+    CHECK(std::fabs(planned.surface.transmittance(0.7) - reference.transmittance(0.7)) < scene.tolerance);
+}

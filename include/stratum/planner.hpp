@@ -5,8 +5,9 @@
 // The models. The top face's own reflection (LayerOutput::surface_reflection alone) is a closed form: the rough
 // face's BRDF or the Fresnel mirror, no solve. Everything that enters the layer is the discrete-ordinate solution
 // (layer.hpp), whose error is set by the number of ordinates M: the planner solves M = 4, 8, 16, ... (4 times a
-// power of 2, up to SceneRequest::max_ordinates) and takes the first M from 8 on whose estimated error is within the
-// tolerance, then solves the requested outputs there.
+// power of 2, up to SceneRequest::max_ordinates; from 8 for slabs joined by a refracting face, where 4 can trap
+// light) and takes the first M from 8 on (from 16 there) whose estimated error is within the tolerance, then solves
+// the requested outputs there.
 //
 // The error estimate. The checked quantities are the hemispherical fluxes the request implies (the subsurface
 // reflectance and the transmittance, each where asked) at the scene's incidences (SceneRequest::incidence; when
@@ -342,7 +343,7 @@ struct Levels {
     std::vector<LayeredSurface<Real>> last;
 };
 
-// Solves the levels M = 4, 8, 16, ... until the estimate meets the tolerance or max_ordinates is reached; writes the
+// Solves the levels M = 4 (8 for slabs joined by a refracting face), 8, 16, ... until the estimate meets the tolerance or max_ordinates is reached; writes the
 // options, the ordinates tried, the estimate and the first part of the reason into the plan.
 template <class Real>
 Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene,
@@ -354,7 +355,12 @@ Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const 
     std::optional<PreparedFaces<Real>> faces, before;
     std::vector<LayeredSurface<Real>> last;
     Real estimate = std::numeric_limits<Real>::infinity();
-    for (int m = 4; m <= scene.max_ordinates; m *= 2) {
+    // (Slabs joined by a refracting face start at 8: fewer than 5 ordinates are refused there,
+    // detail::require_ordinates_for_joints.)
+    bool refracting = false;
+    for (const Boundary<Real>& b : wavelengths.front().interior)
+        refracting = refracting || (!b.rough() && !b.lambertian() && b.eta_above() != b.eta_below());
+    for (int m = refracting ? 8 : 4; m <= scene.max_ordinates; m *= 2) {
         plan.options.ordinates = m;
         plan.options.modes = checked.angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
         if (faces) before = *faces;
