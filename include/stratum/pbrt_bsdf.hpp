@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "detail/math.hpp"
+#include "detail/validate.hpp"
 #include "tabulated_bsdf.hpp"
 #include "vec3.hpp"
 
@@ -288,7 +289,7 @@ inline void put_bytes(std::ostream& out, const void* data, std::size_t n) {
 }
 inline void get_bytes(std::istream& in, void* data, std::size_t n) {
     in.read(static_cast<char*>(data), static_cast<std::streamsize>(n));
-    if (!in) throw std::runtime_error("stratum: pbrt .bsdf file: truncated");
+    if (!in) detail::fail_runtime_error("stratum: pbrt .bsdf file: truncated");
 }
 // `count` values of 4 bytes appended to v in chunks of 2^20, so that a header claiming more than the file holds fails
 // at the file's end having allocated no more than it read (a 52-byte file claiming 2^31 - 1 coefficients allocated
@@ -316,7 +317,7 @@ inline bool little_endian() noexcept {
 /// Writes `table` as a pbrt-v3 ".bsdf" file. Throws std::runtime_error if the stream fails (or the host is
 /// big-endian: the format is little-endian).
 inline void write_pbrt_bsdf(std::ostream& out, const PbrtBsdfTable& table) {
-    if (!detail::little_endian()) throw std::runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
+    if (!detail::little_endian()) detail::fail_runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
     const std::int32_t n = table.size();
     const char magic[8] = {'S', 'C', 'A', 'T', 'F', 'U', 'N', 1};
     const std::uint32_t flags = 1;
@@ -333,35 +334,35 @@ inline void write_pbrt_bsdf(std::ostream& out, const PbrtBsdfTable& table) {
         detail::put_bytes(out, &table.length[p], 4);
     }
     detail::put_bytes(out, table.coeffs.data(), 4 * table.coeffs.size());
-    if (!out) throw std::runtime_error("stratum: pbrt .bsdf file: write failed");
+    if (!out) detail::fail_runtime_error("stratum: pbrt .bsdf file: write failed");
 }
 inline void write_pbrt_bsdf(const std::string& path, const PbrtBsdfTable& table) {
     std::ofstream out(path, std::ios::binary);
-    if (!out) throw std::runtime_error("stratum: cannot open " + path + " for writing");
+    if (!out) detail::fail_runtime_error("stratum: cannot open " + path + " for writing");
     write_pbrt_bsdf(out, table);
 }
 
 /// Reads a pbrt-v3 ".bsdf" file with the checks pbrt-v3 makes (identifier and version 1, flags 1, one basis, 1 or 3
 /// channels, no parameters). Throws std::runtime_error naming what is wrong.
 inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
-    if (!detail::little_endian()) throw std::runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
+    if (!detail::little_endian()) detail::fail_runtime_error("stratum: pbrt .bsdf files are little-endian; this host is not");
     char magic[8];
     std::uint32_t flags = 0;
     std::int32_t ints[8];
     float floats[5];
     detail::get_bytes(in, magic, 8);
-    if (std::memcmp(magic, "SCATFUN\x01", 8) != 0) throw std::runtime_error("stratum: not a pbrt .bsdf file of version 1");
+    if (std::memcmp(magic, "SCATFUN\x01", 8) != 0) detail::fail_runtime_error("stratum: not a pbrt .bsdf file of version 1");
     detail::get_bytes(in, &flags, 4);
     detail::get_bytes(in, ints, sizeof ints);
     detail::get_bytes(in, floats, sizeof floats);
     const std::int32_t n = ints[0], n_coeffs = ints[1], channels = ints[3], bases = ints[4];
-    if (flags != 1) throw std::runtime_error("stratum: pbrt .bsdf file: flags = " + std::to_string(flags) + " (1 expected)");
+    if (flags != 1) detail::fail_runtime_error("stratum: pbrt .bsdf file: flags = " + std::to_string(flags) + " (1 expected)");
     if (bases != 1 || (channels != 1 && channels != 3))
-        throw std::runtime_error("stratum: pbrt .bsdf file: " + std::to_string(channels) + " channels and " +
+        detail::fail_runtime_error("stratum: pbrt .bsdf file: " + std::to_string(channels) + " channels and " +
                                  std::to_string(bases) + " bases (1 or 3, and 1, supported)");
     // nMu up to 4096 (16.7 M pairs: far beyond any table; a corrupt header must not allocate without bound).
     if (n < 2 || n > 4096 || n_coeffs < 0 || ints[6] != 0)
-        throw std::runtime_error("stratum: pbrt .bsdf file: invalid sizes (nMu = " + std::to_string(n) + ")");
+        detail::fail_runtime_error("stratum: pbrt .bsdf file: invalid sizes (nMu = " + std::to_string(n) + ")");
     PbrtBsdfTable t;
     t.channels = channels;
     t.eta = floats[0];
@@ -369,7 +370,7 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
     detail::get_array(in, t.mu, static_cast<std::size_t>(n));
     for (std::size_t j = 0; j < t.mu.size(); ++j)
         if (!(t.mu[j] >= -1 && t.mu[j] <= 1) || (j > 0 && !(t.mu[j] >= t.mu[j - 1])))
-            throw std::runtime_error("stratum: pbrt .bsdf file: the cosines are not ascending in [-1, 1]");
+            detail::fail_runtime_error("stratum: pbrt .bsdf file: the cosines are not ascending in [-1, 1]");
     detail::get_array(in, t.cdf, nn);
     std::vector<std::int32_t> pairs;  // offset and length, interleaved, a chunk at a time (no second copy of all)
     for (std::size_t done = 0; done < nn;) {
@@ -379,7 +380,7 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
         for (std::size_t p = 0; p < step; ++p) {
             const std::int32_t offset = pairs[2 * p], length = pairs[2 * p + 1];
             if (offset < 0 || length < 0 || length > n_coeffs / channels || offset > n_coeffs - channels * length)
-                throw std::runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
+                detail::fail_runtime_error("stratum: pbrt .bsdf file: a series outside the coefficients");
             t.offset.push_back(offset);
             t.length.push_back(length);
         }
@@ -390,7 +391,7 @@ inline PbrtBsdfTable read_pbrt_bsdf(std::istream& in) {
 }
 inline PbrtBsdfTable read_pbrt_bsdf(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw std::runtime_error("stratum: cannot open " + path);
+    if (!in) detail::fail_runtime_error("stratum: cannot open " + path);
     return read_pbrt_bsdf(in);
 }
 

@@ -66,6 +66,16 @@ namespace stratum::detail {
 #endif
 }
 
+/// As fail_invalid_argument, for input/output that cannot proceed (std::runtime_error: a file unreadable, truncated or
+/// not of the expected format).
+[[noreturn]] inline void fail_runtime_error(const std::string& message) {
+#if STRATUM_EXCEPTIONS
+    throw std::runtime_error(message);
+#else
+    fail_invalid_argument(message);
+#endif
+}
+
 /// Formats a value with enough digits to round-trip (so 1 - 1e-17 does not print as "1").
 template <class Real>
 std::string format_value(Real value) {
