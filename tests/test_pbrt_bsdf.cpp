@@ -59,7 +59,7 @@ struct AddressSpaceLimit {
 #endif
 };
 
-// Stam's skin layer (docs/physics.md section 5) at 8 ordinates: n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8,
+// Stam's skin layer (docs/physics.md section 1) at 8 ordinates: n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8,
 // e^-tau = 0.5.
 const TabulatedBSDF<double>& skin_table() {
     static const TabulatedBSDF<double> table = [] {

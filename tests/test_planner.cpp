@@ -31,7 +31,7 @@ using stratum_test::uniform;
 
 namespace {
 
-// Stam's skin layer (docs/physics.md section 6).
+// Stam's skin layer (docs/physics.md section 1).
 Material<double> skin() {
     return {RoughDielectric<double>(0.3, 1.0, 1.4), {Slab<double>(0.9, 0.8, std::log(2.0))}, {},
             RoughDielectric<double>(0.3, 1.4, 1.0)};

@@ -19,7 +19,7 @@ using stratum_test::uniform;
 
 namespace {
 
-// Stam's skin layer (docs/physics.md section 5): n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8, e^-tau = 0.5.
+// Stam's skin layer (docs/physics.md section 1): n 1 | 1.4 | 1, sigma 0.3, albedo 0.9, g 0.8, e^-tau = 0.5.
 LayeredSurface<double> skin(int ordinates = 16) {
     LayerOptions o;
     o.ordinates = ordinates;

@@ -24,10 +24,12 @@
 //  * for plain (untruncated) Henyey-Greenstein, a closed form in complete elliptic integrals with a
 //    recurrence in k -- HenyeyGreenstein::fourier_coefficients and phase_fourier_matrices(hg, mu, modes).
 // Accuracy (double, against mpmath quadrature of the azimuthal integral, coefficients >= 1e-8 p_0):
-//   g       series (N = ln(1e-17)/ln g: 263, 2749, 39100 terms)   closed form
+//   g       series (N = ln(1e-12)/ln g: 263, 2750, 27618 terms)   closed form
 //   0.9     rel 8e-8,  abs 6e-15 p_0                              rel 3e-15, abs 7e-16 p_0
 //   0.99    rel 6e-5,  abs 7e-13 p_0                              rel 1e-14, abs 8e-15 p_0
 //   0.999   rel 3e-3,  abs 5e-11 p_0                              rel 4e-15, abs 3e-15 p_0
+// (closed form: up to 1.5e-14 rel / 9.5e-15 p_0 at g = 0.999 and 4.2e-14 rel at g = 0.9999, k = 299, where the
+// upward recurrence is taken just below its amplification limit of 64; found by review)
 // The series' error is absolute, ~eps (1 + g)/(1 - g)^2 (its terms cancel), so small coefficients
 // lose their relative accuracy; the closed form keeps it and costs O(modes) whatever g, while the series
 // costs O(N modes) (BM_hg_fourier_pair_series / _closed_form; figures in README and docs/accuracy.md).
@@ -134,7 +136,8 @@ public:
 
     /// The number of moments L (l = 0..L-1) for which the first neglected moment |g|^L <= tolerance:
     /// L = ceil(ln(tolerance) / ln|g|), at least 1 (1 for g = 0). E.g. 263 at g = 0.9 and
-    /// tolerance 1e-12, 2749 at g = 0.99. The truncation error of 4 pi p is about
+    /// tolerance 1e-12, 2750 at g = 0.99. At most 1e8 (returned where more would be needed: g within
+    /// ~1e-8 of +-1 at tolerance 1e-12, where |g|^L is then above the tolerance). The truncation error of 4 pi p is about
     /// (2L + 1) |g|^L / (1 - |g|): ask for a tolerance a few digits below the accuracy you need.
     /// Throws std::invalid_argument unless 0 < tolerance < 1.
     int legendre_terms_for_tolerance(Real tolerance) const {
@@ -148,7 +151,7 @@ public:
     /// The azimuthal Fourier coefficients p_0..p_{modes-1}(mu', mu) of this phase function, untruncated
     /// (the limit N -> inf of the Legendre series; 4 pi normalization), in closed form, written to
     /// out[0..modes-1]. O(modes) work (plus the Miller start-up below) whatever g, where the
-    /// Legendre series needs ~ln(eps)/ln|g| terms (27600 at g = 0.999). mu', mu in [-1, 1] (clamped).
+    /// Legendre series needs ~ln(eps)/ln|g| terms (36026 at g = 0.999; 27618 for 1e-12). mu', mu in [-1, 1] (clamped).
     ///
     /// With D = 1 + g^2 - 2 g mu' mu and E = 2 g sin(theta') sin(theta) (g >= 0; g < 0 maps to -g by
     /// p_k^g(mu', mu) = (-1)^k p_k^{-g}(-mu', mu)), 4 pi p = (1 - g^2) (D - E cos phi)^{-3/2} and

@@ -16,7 +16,7 @@
 //   masking-only BRDF as wo.z -> 0) it saturates at the largest finite value. A grazing pair whose half
 //   vector underflows (|wi + wo|^2 = 0 in Real) is degenerate input, too: 0.
 //
-// Microfacet model (Stam 2001 Section 4, corrected as in docs/physics.md sections 4 and 9; Walter et al. 2007 form):
+// Microfacet model (Stam 2001 Section 4, corrected as in docs/physics.md sections 4 and 11; Walter et al. 2007 form):
 //   brdf  r(i, o) = F(i.h, eta_t/eta_i) D(h) G2(i, o) / (4 |i.z| |o.z|),                  h = normalize(i + o)
 //   btdf  t(i, o) = |i.h| |o.h| / (|i.z| |o.z|) eta_o^2 (1 - F(i.h, eta_o/eta_i)) D(h) G2(i, o)
 //                   / (eta_i (i.h) + eta_o (o.h))^2,                                     h = +-normalize(eta_i i + eta_o o)

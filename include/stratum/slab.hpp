@@ -32,11 +32,16 @@
 // their sum and their difference divided by lambda_j, which have finite limits as lambda_j -> 0:
 //     (n (1 + E) + lambda^2 phi y)  and  (n phi + y (1 + E)),   phi = (1 - E) / lambda -> tau_b.
 // This is what makes Omega = 1 exact (the double eigenvalue lambda = 0 at k = 0 has the constant and the
-// linear-in-tau solutions) and continuous as Omega -> 1. At Omega = 1 exactly the zero eigenvalue is set
+// linear-in-tau solutions) and continuous as Omega -> 1 as far as the smallest eigenvalue lambda_0^2 ~
+// 3 (1 - Omega)(1 - g) is resolved: symmetric_eigen gives it with an absolute error ~ eps max(lambda^2) ~ eps /
+// mu_min^2, so below 1 - Omega ~ 1e-13 in double (~1e-3 in float, M = 16) a thick slab's 1 - R is off (double,
+// g 0, M = 16, semi-infinite: 7.4e-8 for 2.9e-7 at 1 - Omega = 1e-14, 4.3e-15 for 2.9e-8 at 1e-16; float: R 0.99999
+// for 0.99085 at 1e-5; found by review; README, known limitations). At Omega = 1 exactly the zero eigenvalue is set
 // to exactly 0 when the discretized phase function conserves energy (sum_m w_m (P+ + P-)_nm = 2).
 //
 // Accuracy (tests/test_slab.cpp): |R + T - 1| <= 4e-12 at Omega = 1 for M <= 128; the smallest lambda
-// to 2e-9 relative at 1 - Omega = 1e-6; entries of R and T carry absolute errors ~1e-16 (so the R ~ tau of
+// to 2e-9 relative at 1 - Omega = 1e-6 (double; lost below ~1e-13, above); entries of R and T carry absolute errors
+// ~1e-16 away from that limit (so the R ~ tau of
 // a very thin slab is good to ~1e-16 / tau relative). The discretization error itself falls only like
 // M^-2 on a Gauss rule when the radiance has grazing structure (Chandrasekhar's H: 4e-5, 1e-5, 3e-6 at
 // M = 16, 32, 64); rules graded towards mu = 0 converge much faster (the published-table tests use them).
