@@ -617,3 +617,53 @@ TEST_CASE("randomized sweep: finite, non-negative (mode 0), reflectance + transm
         }
     }
 }
+
+TEST_CASE("near conservation: a semi-infinite slab's 1 - A ~ sqrt(1 - Omega) H(mu) holds down to 1 - Omega = 1e-18") {
+    // The smallest eigenvalue lambda_0^2 ~ 3 (1 - Omega)(1 - g) is recomputed from the structure where one
+    // eigen-decomposition cannot resolve it (slab.hpp, refine_conservation_mode): before, 1 - A at the last ordinate
+    // (M = 16, isotropic) was 7.4e-8 at 1 - Omega = 1e-14 where sqrt(1 - Omega) H gives 2.9e-7, 2.5e-7 at 1e-15 for
+    // 9.2e-8, and 4e-15 at 1e-16 (the slab taken as lossless; found by review). Checked: the ratio
+    // (1 - A) / sqrt(1 - Omega) tends to a limit, its change from 1 - Omega = x to 0 bounded by the next term of
+    // the expansion, c sqrt(x) relative with c ~ 2 (1.8 at 1e-8, 2.6 at 1e-10, M = 16; bounded here by 4), and, for an independent figure, it is
+    // Chandrasekhar's H at the same mu to the rule's discretization error (within 1e-3 at M = 16).
+    for (int m : {4, 16}) {
+        const Quadrature<double> q = half_range(m);
+        const std::size_t last = q.size() - 1;
+        const auto ratio = [&](double one_minus) {
+            const auto s = solve(Slab<double>::from_one_minus_albedo(one_minus, 0.0, inf), q, isotropic(q.size(), 0), 0);
+            return (1 - column_sum(q, s.reflection, last)) / std::sqrt(one_minus);
+        };
+        // (1 - A carries an absolute rounding error ~3e-15, ~1e-14 / sqrt(x) in the ratio: the limit taken at 1e-16.)
+        const double limit = ratio(1e-16);
+        for (double x : {1e-8, 1e-10, 1e-12, 1e-13, 1e-14, 1e-15, 1e-18, 1e-20}) {
+            INFO("M = " << m << ", 1 - Omega = " << x << ": ratio " << ratio(x) << ", limit " << limit);
+            CHECK(std::fabs(ratio(x) - limit) <= limit * 4 * std::sqrt(x) + 1e-14 / std::sqrt(x) + 1e-6);  // (+ the limit's own)
+        }
+        if (m == 16) {
+            const ChandrasekharH h(1 - 1e-6);  // (converges slowly nearer 1; the limit moves by ~sqrt(1e-6))
+            CHECK(std::fabs(limit / h(q.nodes[last]) - 1) < 2e-3);
+        }
+    }
+    // Float against double, the same slabs (M = 16, g 0 and 0.9, semi-infinite and tau 20): within 3e-5 (before:
+    // 9.1e-3 at 1 - Omega = 1e-5, semi-infinite, g 0; 5.5e-4 at 1e-3).
+    const stratum::Quadrature<float> qf = stratum::gauss_legendre_half<float>(16);
+    const Quadrature<double> qd = half_range(16);
+    for (double g : {0.0, 0.9})
+        for (double tau : {20.0, inf}) {
+            const Phase pd = g == 0 ? isotropic(16, 0) : henyey_greenstein(g, qd.nodes, 0, 31);
+            std::vector<float> same(pd.same.begin(), pd.same.end()), opposite(pd.opposite.begin(), pd.opposite.end());
+            for (double x : {1e-1, 1e-2, 1e-3, 1e-5, 1e-7, 1e-9}) {
+                const auto sd = solve(Slab<double>::from_one_minus_albedo(x, 0.0, tau), qd, pd, 0);
+                const auto sf = solve_slab_mode(Slab<float>::from_one_minus_albedo(float(x), 0.0f, float(tau)), qf, same, opposite, 0);
+                double worst = 0;
+                for (std::size_t j = 0; j < 16; ++j) {
+                    double a_f = 0;
+                    for (std::size_t n = 0; n < 16; ++n) a_f += double(qf.weights[n]) * qf.nodes[n] * sf.reflection[n * 16 + j];
+                    a_f /= double(qf.weights[j]) * qf.nodes[j];
+                    worst = std::fmax(worst, std::fabs(a_f - column_sum(qd, sd.reflection, j)));
+                }
+                INFO("g " << g << ", tau " << tau << ", 1 - Omega " << x);
+                CHECK(worst < 3e-5);
+            }
+        }
+}
