@@ -428,6 +428,16 @@ TEST_CASE("the plan names what it could not reach, and refuses bad requests by n
     SceneRequest<double> scale;
     scale.length_scale = -1;
     CHECK_THROWS_WITH_AS(solve_planned(skin(), scale), doctest::Contains("length_scale"), std::invalid_argument);
+    // Outputs: a bit beyond LayerOutput::all, or nothing at all without a profile (both were planned up to
+    // max_ordinates, the first refused only by the final solve; found by review).
+    for (const unsigned bad : {1u << 9, (1u << 9) | static_cast<unsigned>(LayerOutput::transmittance)}) {
+        SceneRequest<double> o;
+        o.outputs = static_cast<LayerOutput>(bad);
+        CHECK_THROWS_WITH_AS(solve_planned(skin(), o), doctest::Contains("outputs"), std::invalid_argument);
+    }
+    SceneRequest<double> nothing;
+    nothing.outputs = static_cast<LayerOutput>(0u);
+    CHECK_THROWS_WITH_AS(solve_planned(skin(), nothing), doctest::Contains("nothing is asked"), std::invalid_argument);
 }
 
 TEST_CASE("the planner in float") {

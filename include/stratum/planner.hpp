@@ -243,9 +243,16 @@ bool same_boundary(const Boundary<Real>& a, const Boundary<Real>& b) noexcept {
                           a.rough_interface()->shadowing() == b.rough_interface()->shadowing());
 }
 
-// The request's checks, in solve_planned's order: tolerance, max_ordinates, incidences, length scale, profile.
+// The request's checks, in solve_planned's order: outputs, tolerance, max_ordinates, incidences, length scale,
+// profile. (Outputs beyond LayerOutput::all, or none without a diffusion profile, were accepted: the levels ran to
+// max_ordinates for nothing, or the final solve refused them after the whole search; found by review.)
 template <class Real>
 void require_scene(const Material<Real>& material, const SceneRequest<Real>& scene) {
+    const auto outputs = static_cast<unsigned>(scene.outputs);
+    if ((outputs & ~static_cast<unsigned>(LayerOutput::all)) != 0)
+        throw_out_of_range("outputs", static_cast<long long>(outputs), "combinations of LayerOutput's flags, [0, 127]");
+    if (outputs == 0 && !scene.diffusion_profile)
+        fail_invalid_argument("stratum: solve_planned: outputs = 0 and no diffusion profile: nothing is asked for");
     require_open("tolerance", scene.tolerance, Real(0), Real(1));
     if (scene.max_ordinates < 8 || scene.max_ordinates > 256)
         throw_out_of_range("max_ordinates", scene.max_ordinates, "[8, 256]");
