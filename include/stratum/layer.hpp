@@ -176,8 +176,8 @@ struct LayerRequest {
 
 /// `options` with the rough faces' integrals no finer than a tolerance needs: LayerOptions::hemispherical_nodes
 /// capped at 9 from 1e-2 and 12 from 1e-3, ::azimuthal_points at 12 from 1e-3, so that their worst errors stay 35
-/// times or more inside the tolerance, relative to the largest of the outputs as the tolerance's mode cut measures
-/// them (an output far below the others, such as a subsurface BRDF 50 times below the BTDF, may change by up to
+/// times or more inside the tolerance, relative to the largest of the outputs (the subsurface BRDF and BTDF
+/// together; an output far below the others, such as a subsurface BRDF 50 times below the BTDF, may change by up to
 /// 0.3 t of its own peak: docs/physics.md section 6); none capped below 1e-3. A solve with LayerRequest::tolerance builds its
 /// rough faces so (and the planner its levels); faces prepared with these options give that solve's result bit for
 /// bit (PreparedBoundary), faces prepared with `options` the same within the integrals' error. Measured: the
@@ -1346,7 +1346,7 @@ private:
     void extend_faces(int modes);
     void add_beam_mode(int k, std::vector<detail::SlabModeSolution<Real>>&& slabs, const detail::PreparedStack<Real>& stack);
     void add_field_operators(int k, const detail::StackMode<Real>& below);
-    Real coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
+    std::array<Real, 2> coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
     void solve_ambient();
     void solve_depths(const detail::PreparedStack<Real>& stack, const std::vector<Slab<Real>>& slabs,
                       const LayerOptions& options, const std::vector<Real>& depths);
@@ -2994,7 +2994,7 @@ detail::CouplingTable<Real> LayeredSurface<Real>::tabulate_couplings(const Face&
 
 // Step 4: modes 0, 1, ... up to `modes`: mode k of everything below the top face (detail::stack_mode), its Q_b and
 // Q_e (add_field_operators) and, when requested, the whole layer's operators. With a tolerance, mode k is
-// negligible when the BRDF/BTDF Fourier coefficients it adds are below tolerance relative to mode 0's
+// negligible when the BRDF and BTDF Fourier coefficients it adds are each below tolerance relative to mode 0's
 // (coefficient_size); through specular boundaries only, the unscattered beam is a delta that no number of modes
 // represents, so the slabs' diffuse operators are measured instead. The loop stops after two consecutive
 // negligible modes.
@@ -3003,7 +3003,7 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
     // Where the beam is a source, the fields and fluxes come from the slabs' own solutions (add_beam_mode): the
     // adding of the stack and Q_b, Q_e serve only the ambient term and the whole layer's operators.
     bool slabs_only = beam_ && !includes(outputs_, LayerOutput::ambient) && !includes(outputs_, LayerOutput::operators);
-    Real size0 = 0;
+    std::array<Real, 2> size0{Real(0), Real(0)};  // mode 0's sizes, reflected and transmitted (coefficient_size)
     int negligible = 0;  // consecutive negligible modes
     for (int k = 0; k < modes; ++k) {
         if (k >= top_ops_->modes() || k >= bottom_ops_->modes()) extend_faces(modes);
@@ -3035,7 +3035,7 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
             beam_.reset();
             if (slabs_only) {
                 slabs_only = false;
-                size0 = 0;
+                size0 = {Real(0), Real(0)};
                 negligible = 0;
                 modes_ = 0;
                 k = -1;
@@ -3046,9 +3046,10 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
         if (below) add_field_operators(k, *below);
         modes_ = k + 1;
         if (!(tolerance > 0)) continue;
-        const Real size = stack.any_rough ? coefficient_size(k, below->bottom) : slab_size;
+        const std::array<Real, 2> size =
+            stack.any_rough ? coefficient_size(k, below->bottom) : std::array<Real, 2>{slab_size, Real(0)};
         if (k == 0) size0 = size;
-        negligible = (k > 0 && size <= tolerance * size0) ? negligible + 1 : 0;
+        negligible = (k > 0 && size[0] <= tolerance * size0[0] && size[1] <= tolerance * size0[1]) ? negligible + 1 : 0;
         if (negligible == 2) break;
     }
 }
@@ -3236,15 +3237,17 @@ void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Re
     whole_.push_back(std::move(w));
 }
 
-// The size of mode k for the adaptive mode count: the largest BRDF/BTDF Fourier coefficient it adds at the
-// ordinate pairs, (2 - delta_k0) (T_21 Q_b T_12)_nj / (w_j mu_j) (and T_23 Q_e T_12; the common 1 / (2 pi) left
-// out), for the outputs that were requested; the layer's operators count as both (their transmission directly, where
-// Q_e is not kept). (They were not measured: with the operators alone every mode was negligible, and the solve
+// The size of mode k for the adaptive mode count, {reflected, transmitted}: the largest BRDF (BTDF) Fourier coefficient
+// it adds at the ordinate pairs, (2 - delta_k0) (T_21 Q_b T_12)_nj / (w_j mu_j) (T_23 Q_e T_12; the common 1 / (2 pi)
+// left out), for the outputs that were requested, each compared with its own mode 0 (solve_modes: measured against
+// the larger of the two, a reflection swollen at grazing ordinates hid the BTDF's modes, 6.6% of its peak lost at
+// tolerance 1e-2 with every output asked for, where asking for the transmission alone kept 13 of 16 modes; found by
+// review); the layer's operators count as both (their transmission directly, where Q_e is not kept). (They were not measured: with the operators alone every mode was negligible, and the solve
 // stopped after 3 modes where mode 3 is 0.34 of mode 0's; found by review.) Like the BRDF's, the reflection's size
 // leaves out the top face's own R_12, which at grazing ordinates rings in every mode: measured with it, no mode
 // of Stam's layer was ever negligible.
 template <class Real>
-Real LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real>& bottom) const {
+std::array<Real, 2> LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real>& bottom) const {
     using detail::Matrix;
     const std::size_t m = q_.size();
     const Matrix<Real> t12 = detail::mode_matrix(top_ops_->T12(), k);
@@ -3258,13 +3261,13 @@ Real LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real
         return largest(detail::multiply(exit, detail::multiply(inner, t12)));
     };
     const bool operators = includes(outputs_, LayerOutput::operators) && !whole_.empty();
-    Real size_k = 0;
+    std::array<Real, 2> size_k{Real(0), Real(0)};
     if (detail::needs_reflected(outputs_) || includes(outputs_, LayerOutput::ambient) || operators)
-        size_k = size(detail::mode_matrix(top_ops_->T21(), k), qb_.back());
+        size_k[0] = size(detail::mode_matrix(top_ops_->T21(), k), qb_.back());
     if (detail::needs_transmitted(outputs_)) {
-        size_k = std::fmax(size_k, size(detail::as_matrix(m, bottom.transmission_down), qe_.back()));
+        size_k[1] = size(detail::as_matrix(m, bottom.transmission_down), qe_.back());
     } else if (operators) {
-        size_k = std::fmax(size_k, largest(detail::as_matrix(m, whole_.back().transmission_down)));
+        size_k[1] = largest(detail::as_matrix(m, whole_.back().transmission_down));
     }
     return size_k;
 }
