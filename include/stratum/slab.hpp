@@ -251,48 +251,73 @@ bool discretely_conservative(Real one_minus_albedo, int k, const std::vector<Rea
     return defect <= Real(64) * Real(m_size) * std::numeric_limits<Real>::epsilon();
 }
 
-/// Eigen-decomposition of the symmetric F with its known null vector v0 deflated analytically: the
-/// Householder reflection H = I - beta u u^T maps v0 to -+|v0| e_1, so H F H = [[0, 0], [0, B]] with
-/// B = (F - u q^T - q u^T) restricted to indices >= 1 (p = beta F u, q = p - (beta u.p / 2) u); the
-/// eigenvalues are 0 and those of B, the vectors H [[1, 0], [0, V_B]].
+/// The Householder reflection H = I - beta h h^T that maps v / |v| to -sign e_1 (sign: that of v's first entry), and
+/// the trailing block of H F H for the symmetric F, indices >= 1: H F H = F - h q^T - q h^T with p = beta F h,
+/// q = p - (beta h.p / 2) h.
+template <class Real>
+struct Reflection {
+    std::vector<Real> h;
+    Real beta = 0, sign = 1;
+    Matrix<Real> trailing;
+
+    /// H x, in place.
+    void apply(std::vector<Real>& x) const {
+        Real dot = 0;
+        for (std::size_t i = 0; i < h.size(); ++i) dot += h[i] * x[i];
+        for (std::size_t i = 0; i < h.size(); ++i) x[i] -= beta * dot * h[i];
+    }
+};
+
+template <class Real>
+Reflection<Real> reflection_to_first_axis(const Matrix<Real>& f, const Matrix<Real>& v) {
+    const std::size_t m_size = f.rows;
+    Reflection<Real> r;
+    Real norm = 0;
+    for (std::size_t i = 0; i < m_size; ++i) norm += v(i, 0) * v(i, 0);
+    norm = std::sqrt(norm);
+    r.h.resize(m_size);
+    for (std::size_t i = 0; i < m_size; ++i) r.h[i] = v(i, 0) / norm;
+    r.sign = r.h[0] >= 0 ? Real(1) : Real(-1);
+    r.h[0] += r.sign;
+    Real hh = 0;
+    for (const Real x : r.h) hh += x * x;
+    r.beta = Real(2) / hh;
+    std::vector<Real> p(m_size), q(m_size);
+    Real hp = 0;
+    for (std::size_t i = 0; i < m_size; ++i) {
+        Real sum = 0;
+        for (std::size_t j = 0; j < m_size; ++j) sum += f(i, j) * r.h[j];
+        p[i] = r.beta * sum;
+        hp += p[i] * r.h[i];
+    }
+    for (std::size_t i = 0; i < m_size; ++i) q[i] = p[i] - r.beta * hp / Real(2) * r.h[i];
+    r.trailing = Matrix<Real>(m_size - 1, m_size - 1);
+    for (std::size_t i = 1; i < m_size; ++i)
+        for (std::size_t j = 1; j < m_size; ++j) r.trailing(i - 1, j - 1) = f(i, j) - r.h[i] * q[j] - q[i] * r.h[j];
+    return r;
+}
+
+/// Eigen-decomposition of the symmetric F with its known null vector v0 deflated analytically: with the reflection
+/// H taking v0 to -+|v0| e_1 (reflection_to_first_axis), H F H = [[0, 0], [0, B]]; the eigenvalues are 0 and those
+/// of B, the vectors H [[1, 0], [0, V_B]].
 template <class Real>
 SymmetricEigen<Real> symmetric_eigen_deflated(const Matrix<Real>& f, const Matrix<Real>& v0) {
     const std::size_t m_size = f.rows;
-    Real norm = 0;
-    for (std::size_t i = 0; i < m_size; ++i) norm += v0(i, 0) * v0(i, 0);
-    norm = std::sqrt(norm);
-    std::vector<Real> u(m_size);
-    for (std::size_t i = 0; i < m_size; ++i) u[i] = v0(i, 0) / norm;
-    u[0] += u[0] >= 0 ? Real(1) : Real(-1);  // H = I - beta u u^T maps v0 to -+e_1
-    Real utu = 0;
-    for (const Real x : u) utu += x * x;
-    const Real beta = Real(2) / utu;
-    std::vector<Real> pv(m_size), qv(m_size);  // H F H = F - u q^T - q u^T
-    Real pu = 0;
-    for (std::size_t i = 0; i < m_size; ++i) {
-        Real sum = 0;
-        for (std::size_t j = 0; j < m_size; ++j) sum += f(i, j) * u[j];
-        pv[i] = beta * sum;
-        pu += pv[i] * u[i];
-    }
-    for (std::size_t i = 0; i < m_size; ++i) qv[i] = pv[i] - beta * pu / Real(2) * u[i];
-    Matrix<Real> b(m_size - 1, m_size - 1);
-    for (std::size_t i = 1; i < m_size; ++i)
-        for (std::size_t j = 1; j < m_size; ++j) b(i - 1, j - 1) = f(i, j) - u[i] * qv[j] - qv[i] * u[j];
-    const SymmetricEigen<Real> eb = symmetric_eigen(b);
+    const Reflection<Real> r = reflection_to_first_axis(f, v0);
+    const SymmetricEigen<Real> eb = symmetric_eigen(r.trailing);
     SymmetricEigen<Real> e;
     e.converged = eb.converged;
     e.values.assign(1, Real(0));
     e.values.insert(e.values.end(), eb.values.begin(), eb.values.end());
     e.vectors = Matrix<Real>(m_size, m_size);  // V = H [[1, 0], [0, V_b]]
+    std::vector<Real> col(m_size);
     for (std::size_t j = 0; j < m_size; ++j) {
-        std::vector<Real> col(m_size, Real(0));
+        std::fill(col.begin(), col.end(), Real(0));
         if (j == 0) col[0] = Real(1);
         else
             for (std::size_t i = 1; i < m_size; ++i) col[i] = eb.vectors(i - 1, j - 1);
-        Real dot = 0;
-        for (std::size_t i = 0; i < m_size; ++i) dot += u[i] * col[i];
-        for (std::size_t i = 0; i < m_size; ++i) e.vectors(i, j) = col[i] - beta * dot * u[i];
+        r.apply(col);
+        for (std::size_t i = 0; i < m_size; ++i) e.vectors(i, j) = col[i];
     }
     return e;
 }
@@ -332,38 +357,25 @@ void refine_conservation_mode(const Matrix<Real>& f, const Matrix<Real>& l, Real
     Real norm2 = 0;
     for (std::size_t i = 0; i < m_size; ++i) norm2 += v0(i, 0) * v0(i, 0);
     const Real norm = std::sqrt(norm2), a = c_sc / norm2;
-    std::vector<Real> fu(m_size), h(m_size);  // F u = L^T (S+ c) / |v0|; H = I - beta h h^T
+    std::vector<Real> fu(m_size);  // F u = L^T (S+ c) / |v0|, u = v0 / |v0|
     for (std::size_t i = 0; i < m_size; ++i) {
         Real sum = 0;
         for (std::size_t j = i; j < m_size; ++j) sum += l(j, i) * sc[j];
         fu[i] = sum / norm;
-        h[i] = v0(i, 0) / norm;
     }
-    const Real sign = h[0] >= 0 ? Real(1) : Real(-1);
-    h[0] += sign;
-    Real hh = 0, hfu = 0;
-    for (std::size_t i = 0; i < m_size; ++i) hh += h[i] * h[i], hfu += h[i] * fu[i];
-    const Real beta = Real(2) / hh;
-    // The first column of H F H is H F H e_1 = -sign H F u (H e_1 = -sign u): b its entries from 1 on.
+    // The first column of H F H is H F H e_1 = -sign H F u (H e_1 = -sign u): b its entries from 1 on; B the
+    // trailing block, from F.
+    const Reflection<Real> r = reflection_to_first_axis(f, v0);
+    r.apply(fu);
     std::vector<Real> b(m_size - 1);
-    for (std::size_t i = 1; i < m_size; ++i) b[i - 1] = -sign * (fu[i] - beta * hfu * h[i]);
-    // B: H F H = F - h q^T - q h^T, p = beta F h, q = p - (beta h.p / 2) h (F from the decomposition's input).
-    std::vector<Real> p(m_size), q(m_size);
-    Real hp = 0;
-    for (std::size_t i = 0; i < m_size; ++i) {
-        Real sum = 0;
-        for (std::size_t j = 0; j < m_size; ++j) sum += f(i, j) * h[j];
-        p[i] = beta * sum;
-        hp += h[i] * p[i];
-    }
-    for (std::size_t i = 0; i < m_size; ++i) q[i] = p[i] - beta * hp / Real(2) * h[i];
+    for (std::size_t i = 1; i < m_size; ++i) b[i - 1] = -r.sign * fu[i];
     Real x = a;
     Matrix<Real> t(m_size - 1, 1);
     for (int iteration = 0; iteration < 16; ++iteration) {
         Matrix<Real> shifted(m_size - 1, m_size - 1);
         for (std::size_t i = 1; i < m_size; ++i)
             for (std::size_t j = 1; j < m_size; ++j)
-                shifted(i - 1, j - 1) = f(i, j) - h[i] * q[j] - q[i] * h[j] - (i == j ? x : Real(0));
+                shifted(i - 1, j - 1) = r.trailing(i - 1, j - 1) - (i == j ? x : Real(0));
         for (std::size_t i = 0; i + 1 < m_size; ++i) t(i, 0) = b[i];
         t = solve(shifted, t);  // (B - x)^{-1} b
         Real bt = 0;
@@ -383,9 +395,9 @@ void refine_conservation_mode(const Matrix<Real>& f, const Matrix<Real>& l, Real
     std::vector<Real> y(m_size);
     y[0] = Real(1);
     for (std::size_t i = 1; i < m_size; ++i) y[i] = -t(i - 1, 0);
-    Real hy = 0, yy = 0;
-    for (std::size_t i = 0; i < m_size; ++i) hy += h[i] * y[i];
-    for (std::size_t i = 0; i < m_size; ++i) y[i] -= beta * hy * h[i], yy += y[i] * y[i];
+    r.apply(y);
+    Real yy = 0;
+    for (const Real v : y) yy += v * v;
     const Real inverse = Real(1) / std::sqrt(yy);
     eig.values[0] = std::fmax(x, Real(0));
     for (std::size_t i = 0; i < m_size; ++i) eig.vectors(i, 0) = y[i] * inverse;
