@@ -519,6 +519,10 @@ TEST_CASE("slabs joined by a refracting face: the levels start at 8 ordinates (4
     const auto planned = solve_planned(glass_over_tissue, scene);
     REQUIRE(!planned.plan.ordinates_tried.empty());
     CHECK(planned.plan.ordinates_tried.front() == 8);
+    // Two levels at least: max_ordinates 8 ran one and left the estimate infinite (found by review).
+    SceneRequest<double> one_level = scene;
+    one_level.max_ordinates = 8;
+    CHECK_THROWS_WITH_AS(solve_planned(glass_over_tissue, one_level), doctest::Contains("max_ordinates"), std::invalid_argument);
     CHECK(planned.plan.options.ordinates >= 16);
     // Its answer against a fine solve at the tolerance.
     LayerOptions fine;

@@ -83,8 +83,9 @@ constexpr bool needs_transmitted(LayerOutput set) noexcept {
 /// Discretization knobs.
 struct LayerOptions {
     int ordinates = 16;   ///< M half-range ordinates per hemisphere (gauss_legendre_half), 1 to 4096 (>= 2 under a
-                          ///< smooth face whose critical cosine exceeds 0.5: detail::require_escape; >= 5 for slabs
-                          ///< joined by a refracting smooth face: detail::require_ordinates_for_joints)
+                          ///< smooth face whose critical cosine exceeds 0.5: detail::require_escape; >= 5, and more
+                          ///< than the distinct critical cosines, for scattering slabs joined by a refracting smooth
+                          ///< face: detail::minimum_ordinates)
     int modes = 0;        ///< K azimuthal modes; 0 = 2M (as many as 2M Legendre moments support)
     bool delta_m = true;  ///< delta-M scaling (Wiscombe 1977) with 2M moments, for g > 0 (forward peaks)
     /// Rough boundaries: rescale each operator column to the exact hemispherical totals (interface_operators.hpp).
@@ -2678,25 +2679,47 @@ void require_escape(const Boundary<Real>& top, const std::vector<Boundary<Real>>
               "interior[" + std::to_string(i) + "]");
 }
 
-/// Slabs joined by a refracting specular face (smooth, indices differing) need 5 ordinates or more: with fewer, the
-/// joints' critical cosines leave more panels than ordinates (layer_quadrature falls back to one rule) or the split
-/// gives a dense slab no ordinate the joints let out, and light scattered there was trapped: of lossless stacks with
-/// smooth faces, R + T 0.36 at 2 ordinates (1 | 1.1 | 1.8 | 1.1 | 1, tau 1 each; the BRDF 1.3e14), 0.65 at 4 with a
-/// dense film among the slabs, the BRDF up to 1e289 (found by review). Over 1600 random such stacks (2 to 4 slabs,
-/// indices 1 to 2.6, tau 0 to 10, smooth or rough top, a floor or not, double and float) R + T failed at 4 ordinates
-/// in 6 and at none of 5, 6 and 7 (tests/test_layer_stack.cpp). Refused (std::invalid_argument).
+/// The fewest ordinates a stack takes: slabs joined by a refracting specular face (smooth, indices differing), one of
+/// them scattering, need 5, and one more than the stack's distinct critical cosines (each face's, on its denser side)
+/// where that is more; 1 otherwise. With fewer, the critical cosines leave more panels than ordinates
+/// (layer_quadrature falls back to one rule) or the split gives a dense slab no ordinate the joints let out, and light
+/// scattered there was trapped: of lossless stacks with smooth faces, R + T 0.36 of 1 at 2 ordinates
+/// (1 | 1.1 | 1.8 | 1.1 | 1, tau 1 each; the BRDF 1.3e14), 0.65 at 4 with a dense film among the slabs, 0.29 at 5
+/// for 1 | 3.334 | 1.747 | 3.733 | 3.602 | 1 (five cuts), 0.46 at 6 for a stack of six slabs with seven (found by
+/// reviews). Over 1600 random stacks (2 to 4 slabs, indices 1 to 2.6, tau 0 to 10, smooth or rough top, a floor or
+/// not, double and float) R + T failed at 4 ordinates in 6 and at none of 5, 6 and 7 (tests/test_layer_stack.cpp).
 template <class Real>
-void require_ordinates_for_joints(const std::vector<Boundary<Real>>& interior, int ordinates) {
-    constexpr int needed = 5;
+int minimum_ordinates(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                      const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom) {
+    bool refracting = false, scattering = false;
+    for (const Boundary<Real>& b : interior)
+        refracting = refracting || (!b.rough() && !b.lambertian() && b.eta_above() != b.eta_below());
+    for (const Slab<Real>& s : slabs) scattering = scattering || (s.albedo() > 0 && s.optical_thickness() > 0);
+    if (!refracting || !scattering) return 1;
+    std::vector<Real> cuts;
+    const auto add = [&cuts](const Boundary<Real>& b) {
+        if (b.lambertian()) return;
+        const Real r = std::fmin(b.eta_above(), b.eta_below()) / std::fmax(b.eta_above(), b.eta_below());
+        if (r < 1) cuts.push_back(std::sqrt((1 - r) * (1 + r)));
+    };
+    add(top);
+    for (const Boundary<Real>& b : interior) add(b);
+    add(bottom);
+    std::sort(cuts.begin(), cuts.end());
+    const auto distinct = std::unique(cuts.begin(), cuts.end()) - cuts.begin();
+    return std::max(5, static_cast<int>(distinct) + 1);
+}
+
+/// Refuses (std::invalid_argument) fewer ordinates than minimum_ordinates.
+template <class Real>
+void require_ordinates_for_joints(const Boundary<Real>& top, const std::vector<Slab<Real>>& slabs,
+                                  const std::vector<Boundary<Real>>& interior, const Boundary<Real>& bottom,
+                                  int ordinates) {
+    const int needed = minimum_ordinates(top, slabs, interior, bottom);
     if (ordinates >= needed) return;
-    for (std::size_t i = 0; i < interior.size(); ++i) {
-        const Boundary<Real>& b = interior[i];
-        if (b.rough() || b.lambertian() || b.eta_above() == b.eta_below()) continue;
-        fail_invalid_argument("stratum: options.ordinates = " + std::to_string(ordinates) +
-                              " is too few for slabs joined by a refracting face (interior[" + std::to_string(i) + "], " +
-                              std::to_string(b.eta_above()) + " | " + std::to_string(b.eta_below()) +
-                              "): light scattered in a slab could be trapped; use " + std::to_string(needed) + " or more");
-    }
+    fail_invalid_argument("stratum: options.ordinates = " + std::to_string(ordinates) +
+                          " is too few for slabs joined by a refracting face: light scattered in a slab could be "
+                          "trapped; this stack needs " + std::to_string(needed) + " or more");
 }
 
 /// Whether some slab lets through less than 4 eps of any light falling on it, by the diffusion bound for a lossless
@@ -2812,7 +2835,7 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
         return s;
     }
     detail::require_escape(top, interior, bottom, s.q_);
-    detail::require_ordinates_for_joints(interior, options.ordinates);
+    detail::require_ordinates_for_joints(top, slabs, interior, bottom, options.ordinates);
 
     // 2. A rough face built here for a request with a tolerance gets the modes it is expected to need, and more if
     // the solve reaches them (extend_faces); prepared faces hold all.

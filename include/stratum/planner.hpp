@@ -5,9 +5,9 @@
 // The models. The top face's own reflection (LayerOutput::surface_reflection alone) is a closed form: the rough
 // face's BRDF or the Fresnel mirror, no solve. Everything that enters the layer is the discrete-ordinate solution
 // (layer.hpp), whose error is set by the number of ordinates M: the planner solves M = 4, 8, 16, ... (4 times a
-// power of 2, up to SceneRequest::max_ordinates; from 8 for slabs joined by a refracting face, where 4 can trap
-// light) and takes the first M from 8 on (from 16 there) whose estimated error is within the tolerance, then solves
-// the requested outputs there.
+// power of 2, up to SceneRequest::max_ordinates; from 8 or more for scattering slabs joined by a refracting face,
+// where fewer can trap light: detail::minimum_ordinates) and takes the first M from the second level on whose
+// estimated error is within the tolerance, then solves the requested outputs there.
 //
 // The error estimate. The checked quantities are the hemispherical fluxes the request implies (the subsurface
 // reflectance and the transmittance, each where asked) at the scene's incidences (SceneRequest::incidence; when
@@ -71,7 +71,8 @@ struct SceneRequest {
     /// Absolute error allowed in the fluxes, as fractions of the incident flux, in (0, 1).
     Real tolerance = Real(1e-3);
     /// The largest number of ordinates the planner may use, 8 to 256 (the levels are 4 times powers of 2: 100 stops
-    /// at 64); past it the plan says the tolerance is not met.
+    /// at 64; at least twice the first level, 16 for scattering slabs joined by a refracting face); past it the plan
+    /// says the tolerance is not met.
     int max_ordinates = 64;
     /// With angular outputs, estimate their error (Plan::angular_error): one more solve at half the ordinates and a
     /// comparison at probe directions, about a tenth of the plan for Stam's layer but twice a smooth slab's 0.24 ms
@@ -243,6 +244,16 @@ bool same_boundary(const Boundary<Real>& a, const Boundary<Real>& b) noexcept {
                           a.rough_interface()->shadowing() == b.rough_interface()->shadowing());
 }
 
+// The first level: 4, or the smallest 4 times a power of 2 that a stack with refracting joints takes
+// (detail::minimum_ordinates: 8 for up to 7 critical cosines).
+template <class Real>
+int first_level(const Material<Real>& m) {
+    const int needed = minimum_ordinates(m.top, m.slabs, m.interior, m.bottom);
+    int first = 4;
+    while (first < needed) first *= 2;
+    return first;
+}
+
 // The request's checks, in solve_planned's order: outputs, tolerance, max_ordinates, incidences, length scale,
 // profile. (Outputs beyond LayerOutput::all, or none without a diffusion profile, were accepted: the levels ran to
 // max_ordinates for nothing, or the final solve refused them after the whole search; found by review.)
@@ -256,6 +267,11 @@ void require_scene(const Material<Real>& material, const SceneRequest<Real>& sce
     require_open("tolerance", scene.tolerance, Real(0), Real(1));
     if (scene.max_ordinates < 8 || scene.max_ordinates > 256)
         throw_out_of_range("max_ordinates", scene.max_ordinates, "[8, 256]");
+    // Two levels at least, for an estimate (slabs joined by a refracting face start at 8 or more: with max_ordinates 8
+    // one level ran and the estimate stayed infinite; found by review).
+    if (scene.max_ordinates < 2 * first_level(material))
+        throw_out_of_range("max_ordinates", scene.max_ordinates,
+                           "[" + std::to_string(2 * first_level(material)) + ", 256] for this material (two levels)");
     for (std::size_t j = 0; j < scene.incidence.size(); ++j)
         require_closed(("incidence[" + std::to_string(j) + "]").c_str(), scene.incidence[j],
                        std::nextafter(Real(0), Real(1)), Real(1));
@@ -350,7 +366,7 @@ struct Levels {
     std::vector<LayeredSurface<Real>> last;
 };
 
-// Solves the levels M = 4 (8 for slabs joined by a refracting face), 8, 16, ... until the estimate meets the tolerance or max_ordinates is reached; writes the
+// Solves the levels M = 4 (or first_level), 8, 16, ... until the estimate meets the tolerance or max_ordinates is reached; writes the
 // options, the ordinates tried, the estimate and the first part of the reason into the plan.
 template <class Real>
 Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const SceneRequest<Real>& scene,
@@ -362,12 +378,7 @@ Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const 
     std::optional<PreparedFaces<Real>> faces, before;
     std::vector<LayeredSurface<Real>> last;
     Real estimate = std::numeric_limits<Real>::infinity();
-    // (Slabs joined by a refracting face start at 8: fewer than 5 ordinates are refused there,
-    // detail::require_ordinates_for_joints.)
-    bool refracting = false;
-    for (const Boundary<Real>& b : wavelengths.front().interior)
-        refracting = refracting || (!b.rough() && !b.lambertian() && b.eta_above() != b.eta_below());
-    for (int m = refracting ? 8 : 4; m <= scene.max_ordinates; m *= 2) {
+    for (int m = first_level(wavelengths.front()); m <= scene.max_ordinates; m *= 2) {
         plan.options.ordinates = m;
         plan.options.modes = checked.angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
         if (faces) before = *faces;
