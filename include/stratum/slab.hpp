@@ -324,15 +324,16 @@ SymmetricEigen<Real> symmetric_eigen_deflated(const Matrix<Real>& f, const Matri
 
 /// Mode 0 near conservation (0 < 1 - Omega, a phase function conservative on the ordinates): the smallest eigenvalue
 /// of F = L^T S+ L, lambda_0^2 ~ 3 (1 - Omega)(1 - g), lies below what one eigen-decomposition resolves (an absolute
-/// error ~ 100 eps max lambda^2 measured; max lambda^2 ~ 1 / mu_min^2): 1 - Omega = 1e-14 in double gave lambda_0
-/// 4.4e-8 for 1.7e-7, and in float from 1 - Omega ~ 1e-3 a semi-infinite slab's R strayed (0.99999 for 0.99085 at
-/// 1e-5; found by review). Recomputed from the structure: v0 = L^{-1} c, c = sqrt(w mu), is F's null vector at
-/// Omega = 1, and F v0 = L^T S+ c with (S+ c)_n = sqrt(w_n / mu_n) ((1 - s_n) + (1 - Omega) s_n),
-/// s_n = c_0 sum_m (P+ + P-)_nm w_m (symmetrized as S+ is), every term small and accurate. With the reflection H that
-/// maps v0 / |v0| to -+e_1, H F H = [[a, b^T], [b, B]], a and b from F v0 (accurate), B from F (its eigenvalues are
-/// the others, far from 0); the smallest eigenvalue solves x = a - b^T (B - x)^{-1} b (a fixed point: the correction
-/// is O(|b|^2 / B), its slope smaller still) and its vector is H [1; -(B - x)^{-1} b]. Replaces eig's smallest pair;
-/// the others keep the full decomposition's.
+/// error ~100 eps, measured): 1 - Omega = 1e-14 in double gave lambda_0 4.4e-8 for 1.7e-7, and in float from
+/// 1 - Omega ~ 1e-3 a semi-infinite slab's R strayed (0.99999 for 0.99085 at 1e-5; found by review). Recomputed from
+/// the structure: v0 = L^{-1} c, c = sqrt(w mu), is F's null vector at Omega = 1, and F v0 = L^T S+ c with
+/// (S+ c)_n = sqrt(w_n / mu_n) ((1 - s_n) + (1 - Omega) s_n), s_n = c_0 sum_m (P+ + P-)_nm w_m (symmetrized as S+ is),
+/// where 1 - s_n, rounding for a phase function conservative on the ordinates, is taken as 0 (as at Omega = 1): every
+/// term small and accurate. With the reflection H that maps v0 / |v0| to -+e_1, H F H = [[a, b^T], [b, B]], a and b
+/// from F v0, B from F (its eigenvalues are the others, far from 0); the smallest eigenvalue solves
+/// x = a - b^T (B - x)^{-1} b, iterated from x = a, and its vector is H [1; -(B - x)^{-1} b]. Replaces eig's
+/// smallest pair (the others keep the full decomposition's) only where the iteration converged to the smallest root
+/// (B - x positive definite) and B's rounding moves x less than the decomposition's own error.
 template <class Real>
 void refine_conservation_mode(const Matrix<Real>& f, const Matrix<Real>& l, Real one_minus_albedo, const std::vector<Real>& mu,
                               const std::vector<Real>& w, const Real* p_same, const Real* p_opposite, Real largest,
