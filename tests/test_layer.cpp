@@ -4,10 +4,13 @@
 
 #include <stratum/layer.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -558,6 +561,22 @@ TEST_CASE("hard parameters stay finite and bounded") {
     }
 }
 
+// The sweeps' sets that detail::require_escape_cones refuses: on a rule without an ordinate in a slab's escape cone
+// (smooth faces of high index at 2 or 3 ordinates) the scattered light was trapped and lost, which the sweeps'
+// bounds (R + T <= 1) let pass; refused now, and counted: a few percent of the sets.
+int refused_sets = 0;
+template <class Solve>
+bool escapes(const Solve& solve) {
+    try {
+        (void)solve();
+    } catch (const std::invalid_argument& e) {
+        REQUIRE(std::string(e.what()).find("escape cone") != std::string::npos);
+        ++refused_sets;
+        return false;
+    }
+    return true;
+}
+
 TEST_CASE("randomized sweep over the parameter domain: no NaN, reflectance and transmittance in [0, 1]") {
 #if defined(__SANITIZE_ADDRESS__)
     const int sets = 100;
@@ -581,10 +600,15 @@ TEST_CASE("randomized sweep over the parameter domain: no NaN, reflectance and t
         const int m = 2 + static_cast<int>(11 * u());
         const bool smooth = u() < 0.2;
         const double s1 = std::pow(10.0, -2 + 2 * u()), s2 = std::pow(10.0, -2 + 2 * u());
-        const auto layer = smooth ? solve_layer(Slab<double>(albedo, g, tau), SmoothDielectric<double>(1.0, n2),
-                                                SmoothDielectric<double>(n2, n3), with_ordinates(m, 0, u() < 0.5 || std::fabs(g) > 0.8))
-                                  : solve_layer(Slab<double>(albedo, g, tau), RoughDielectric<double>(s1, 1.0, n2),
-                                                RoughDielectric<double>(s2, n2, n3), with_ordinates(m, 0, u() < 0.5 || std::fabs(g) > 0.8));
+        const LayerOptions options = with_ordinates(m, 0, u() < 0.5 || std::fabs(g) > 0.8);
+        const auto solve = [&] {
+            return smooth ? solve_layer(Slab<double>(albedo, g, tau), SmoothDielectric<double>(1.0, n2),
+                                        SmoothDielectric<double>(n2, n3), options)
+                          : solve_layer(Slab<double>(albedo, g, tau), RoughDielectric<double>(s1, 1.0, n2),
+                                        RoughDielectric<double>(s2, n2, n3), options);
+        };
+        if (!escapes(solve)) continue;  // (too few ordinates for the escape cone: refused, counted)
+        const auto layer = solve();
         const double mu = u();
         const auto a = layer.reflectance(mu);
         const double t = layer.transmittance(mu);
@@ -597,6 +621,9 @@ TEST_CASE("randomized sweep over the parameter domain: no NaN, reflectance and t
                            << " -> R " << a.surface << " + " << a.subsurface << " T " << t << " f " << f);
     }
     CHECK(failures == 0);
+    MESSAGE(refused_sets << " of " << sets << " sets refused (too few ordinates for the escape cone)");
+    CHECK(refused_sets < std::max(5, sets / 100));
+    refused_sets = 0;
 }
 
 TEST_CASE("randomized sweep with specular boundaries (10^4 sets): no NaN, bounded, energy never created") {
@@ -625,8 +652,12 @@ TEST_CASE("randomized sweep with specular boundaries (10^4 sets): no NaN, bounde
         const double tau = u() < 0.1 ? std::numeric_limits<double>::infinity() : std::pow(10.0, 8 * u() - 4);
         const double n2 = u() < 0.2 ? 1.0 : 1 + 1.5 * u(), n3 = u() < 0.5 ? 1.0 : 1 + 1.5 * u();
         const int m = 2 + static_cast<int>(11 * u());
-        const auto layer = solve_layer(Slab<double>(albedo, g, tau), SmoothDielectric<double>(1.0, n2),
-                                       SmoothDielectric<double>(n2, n3), with_ordinates(m, 0, true));
+        const auto solve = [&] {
+            return solve_layer(Slab<double>(albedo, g, tau), SmoothDielectric<double>(1.0, n2),
+                               SmoothDielectric<double>(n2, n3), with_ordinates(m, 0, true));
+        };
+        if (!escapes(solve)) continue;  // (too few ordinates for the escape cone: refused, counted)
+        const auto layer = solve();
         const double mu = u();
         const auto a = layer.reflectance(mu);
         const double t = layer.transmittance(mu);
@@ -641,6 +672,9 @@ TEST_CASE("randomized sweep with specular boundaries (10^4 sets): no NaN, bounde
                            << " direct T " << layer.direct_transmittance(mu) << " f " << f << " ft " << ft);
     }
     CHECK(failures == 0);
+    MESSAGE(refused_sets << " of " << sets << " sets refused (too few ordinates for the escape cone)");
+    CHECK(refused_sets < std::max(5, sets / 100));
+    refused_sets = 0;
 }
 
 TEST_CASE("bad input is rejected with a message naming the parameter") {
@@ -685,4 +719,28 @@ TEST_CASE("light from below is outside a LayeredSurface's domain: 0 from every f
     MESSAGE("t(wi, wo) = " << forward << ", turned over t(wo, wi) (n1/n3)^-2 = " << backward * n3 * n3);
     CHECK(backward > 0);
     CHECK(std::fabs(backward * n3 * n3 - forward) <= 5e-3 * forward);  // measured 1.0e-3 at M = 12; r_s: 4e-3
+}
+
+TEST_CASE("near conservation in float with a peaked delta-M phase function: R and T follow long double") {
+    // g 0.99 with delta-M at 32 ordinates: the two smallest eigenvalues are close and their float vectors mixed; the
+    // conservation mode's exact vector beside them made the basis nearly dependent (R 0, T 1.0003 at 1 - Omega =
+    // 2.6e-4; found by review): the refinement replaces the value alone, and not where the vectors mix.
+    const auto fluxes = [](auto real, double one_minus, double tau) {
+        using R = decltype(real);
+        LayerOptions o;
+        o.ordinates = 32;
+        LayerRequest<R> request;
+        request.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+        const auto l = stratum::solve_layer(Slab<R>::from_one_minus_albedo(R(one_minus), R(0.99), R(tau)),
+                                            stratum::Boundary<R>::index_matched(), stratum::Boundary<R>::index_matched(), o, request);
+        return std::pair<long double, long double>(l.reflectance(R(1)).total(), l.transmittance(R(1)));
+    };
+    for (double tau : {1.0, 100.0})
+        for (double one_minus : {1.4828e-5, 7e-5, 2.604e-4, 1e-3}) {
+            const auto f = fluxes(0.0f, one_minus, tau), l = fluxes(0.0L, one_minus, tau);
+            INFO("tau " << tau << ", 1 - Omega " << one_minus << ": float R " << double(f.first) << " T " << double(f.second)
+                        << ", long double R " << double(l.first) << " T " << double(l.second));
+            CHECK(std::fabs(f.first - l.first) + std::fabs(f.second - l.second) < 5e-4);  // (without refinement 2.1e-4)
+            CHECK(f.first + f.second <= 1 + 1e-5);
+        }
 }

@@ -592,6 +592,8 @@ TEST_CASE("slabs joined by refracting faces: too few ordinates refused (5, and m
                 const double r = std::min(outside[j - 1], outside[j]) / std::max(outside[j - 1], outside[j]);
                 if (r < 1) cuts.push_back(std::sqrt((1 - r) * (1 + r)));
             }
+            if (floor)  // (over a floor the top's escape cone in every slab below a joint is a cut too)
+                for (std::size_t j = 1; j < eta.size(); ++j) cuts.push_back(std::sqrt((1 - 1 / eta[j]) * (1 + 1 / eta[j])));
             std::sort(cuts.begin(), cuts.end());
             const bool refracting = count > 1 && std::adjacent_find(eta.begin(), eta.end(), std::not_equal_to<double>()) != eta.end();
             const auto solve = [&] {
@@ -608,4 +610,44 @@ TEST_CASE("slabs joined by refracting faces: too few ordinates refused (5, and m
                 worst = std::max(worst, std::fabs(s.reflectance(mu).total() + s.transmittance(mu) - 1));
         }
     CHECK(worst < 1e-9);
+}
+
+TEST_CASE("too few ordinates for a slab's escape cone: over a floor, on one rule, and a single slab") {
+    // Found by the second review: a white floor under 1 | 3.4213 | 2.1636 | 3.5906 | 3.2414 whose escape-cone images
+    // (cut by layer_quadrature) were not counted (R 0.30 at 5 ordinates); on one half-range rule every ordinate of a
+    // slab in its trapped cone (1 | 2.2753 | 1 at 2 and 3 ordinates: R + T 0.15; 1 | 3.492 | 1.837 | 3.859 | 1 at 5: 0.31).
+    using stratum::SmoothDielectric;
+    const auto lossless = [](double tau) { return Slab<double>(1.0, 0.3, tau); };
+    LayerOptions o;
+    const std::vector<Boundary<double>> joints{SmoothDielectric<double>(3.4213, 2.1636), SmoothDielectric<double>(2.1636, 3.5906),
+                                               SmoothDielectric<double>(3.5906, 3.2414)};
+    const std::vector<Slab<double>> four{lossless(4.284), lossless(1.533), lossless(0), lossless(0.36)};
+    o.ordinates = 5;
+    CHECK_THROWS_AS(stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 3.4213), four, joints,
+                                                 Boundary<double>::lambertian(1.0, 3.2414), o),
+                    std::invalid_argument);
+    o.ordinates = 8;
+    const auto floor = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 3.4213), four, joints,
+                                                    Boundary<double>::lambertian(1.0, 3.2414), o);
+    CHECK(std::fabs(floor.reflectance(1.0).total() - 1) < 1e-9);
+    LayerOptions one_rule;
+    one_rule.critical_split = false;
+    for (int m : {2, 3, 4}) {
+        one_rule.ordinates = m;
+        const auto solve = [&] {
+            return stratum::solve_layer(lossless(10), SmoothDielectric<double>(1.0, 2.2753), SmoothDielectric<double>(2.2753, 1.0),
+                                        one_rule);
+        };
+        if (m < 4) {
+            CHECK_THROWS_WITH_AS(solve(), doctest::Contains("escape cone"), std::invalid_argument);
+        } else {
+            const auto s = solve();
+            CHECK(std::fabs(s.reflectance(1.0).total() + s.transmittance(1.0) - 1) < 1e-9);
+        }
+    }
+    one_rule.ordinates = 5;
+    CHECK_THROWS_WITH_AS(stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 3.492), {lossless(1), lossless(1), lossless(1)},
+                                                      {SmoothDielectric<double>(3.492, 1.8374), SmoothDielectric<double>(1.8374, 3.8594)},
+                                                      SmoothDielectric<double>(3.8594, 1.0), one_rule),
+                         doctest::Contains("escape cone"), std::invalid_argument);
 }

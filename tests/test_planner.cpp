@@ -532,3 +532,17 @@ TEST_CASE("slabs joined by a refracting face: the levels start at 8 ordinates (4
     CHECK(std::fabs(planned.surface.reflectance(0.7).total() - reference.reflectance(0.7).total()) < scene.tolerance);
     CHECK(std::fabs(planned.surface.transmittance(0.7) - reference.transmittance(0.7)) < scene.tolerance);
 }
+
+TEST_CASE("several wavelengths of a refracting stack: the levels start where every wavelength can be solved") {
+    // An absorbing first wavelength (albedo 0: no minimum) took 4 ordinates for all, and the second, scattering,
+    // was refused there (found by review).
+    std::vector<Material<double>> wavelengths;
+    for (double albedo : {0.0, 0.9})
+        wavelengths.push_back({SmoothDielectric<double>(1.0, 1.5), {Slab<double>(albedo, 0.5, 1.0), Slab<double>(albedo, 0.5, 1.0)},
+                               {SmoothDielectric<double>(1.5, 1.3)}, SmoothDielectric<double>(1.3, 1.0)});
+    SceneRequest<double> scene;
+    scene.outputs = LayerOutput::reflectance | LayerOutput::transmittance;
+    scene.tolerance = 1e-2;
+    const auto planned = stratum::solve_planned_spectral(wavelengths, scene);
+    CHECK(planned.plan.ordinates_tried.front() == 8);
+}

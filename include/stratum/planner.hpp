@@ -378,7 +378,9 @@ Levels<Real> solve_levels(const std::vector<Material<Real>>& wavelengths, const 
     std::optional<PreparedFaces<Real>> faces, before;
     std::vector<LayeredSurface<Real>> last;
     Real estimate = std::numeric_limits<Real>::infinity();
-    for (int m = first_level(wavelengths.front()); m <= scene.max_ordinates; m *= 2) {
+    int first = 4;  // (the largest over the wavelengths: an absorbing first one took 4 for all, found by review)
+    for (const Material<Real>& w : wavelengths) first = std::max(first, first_level(w));
+    for (int m = first; m <= scene.max_ordinates; m *= 2) {
         plan.options.ordinates = m;
         plan.options.modes = checked.angular ? 0 : 1;  // angular: every mode now, so that the chosen level's faces serve the final solve
         if (faces) before = *faces;
