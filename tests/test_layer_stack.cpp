@@ -517,31 +517,27 @@ TEST_CASE("slabs joined by refracting faces: too few ordinates refused (5, and m
     const auto lossless = [](double g, double tau) { return Slab<double>(1.0, g, tau); };
     // 1 | 1.1 | 1.8 | 1.1 | 1: at 2 ordinates the light scattered in the dense slab was trapped, R + T 0.36 at
     // mu 0.8 and the BRDF 1.3e14 (found by review); 1 | 1.083 | 2.597 (film) | 1.071 | 1.098 | 1: 0.65 at 4.
+    // Each stack (air | slabs | air, smooth faces) refused at `refused` ordinates and lossless at `taken`.
+    const auto check_minimum = [](double top, const std::vector<Slab<double>>& slabs, const std::vector<Boundary<double>>& joints,
+                                  double bottom, int refused, int taken) {
+        LayerOptions o;
+        o.ordinates = refused;
+        INFO("refused at " << refused << ", taken at " << taken);
+        CHECK_THROWS_AS(stratum::solve_stack<double>(SmoothDielectric<double>(1.0, top), slabs, joints,
+                                                     SmoothDielectric<double>(bottom, 1.0), o),
+                        std::invalid_argument);
+        o.ordinates = taken;
+        const auto l = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, top), slabs, joints,
+                                                    SmoothDielectric<double>(bottom, 1.0), o);
+        for (const double mu : {1.0, 0.7, 0.1}) CHECK(std::fabs(l.reflectance(mu).total() + l.transmittance(mu) - 1) < 1e-12);
+    };
     const std::vector<Boundary<double>> dense{SmoothDielectric<double>(1.1, 1.8), SmoothDielectric<double>(1.8, 1.1)};
     const std::vector<Slab<double>> three{lossless(0.3, 1), lossless(0.3, 1), lossless(0.3, 1)};
-    for (int m : {1, 2, 3, 4}) {
-        LayerOptions o;
-        o.ordinates = m;
-        CHECK_THROWS_AS(stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.1), three, dense,
-                                                     SmoothDielectric<double>(1.1, 1.0), o),
-                        std::invalid_argument);
-    }
-    LayerOptions five;
-    five.ordinates = 5;
-    const auto a = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.1), three, dense,
-                                                SmoothDielectric<double>(1.1, 1.0), five);
-    CHECK(std::fabs(a.reflectance(0.8).total() + a.transmittance(0.8) - 1) < 1e-12);
-    const std::vector<Slab<double>> film{lossless(0.202, 0.1), lossless(-0.375, 0), lossless(-0.309, 1), lossless(0.465, 0)};
-    const std::vector<Boundary<double>> film_joints{SmoothDielectric<double>(1.083, 2.597), SmoothDielectric<double>(2.597, 1.071),
-                                                    SmoothDielectric<double>(1.071, 1.098)};
-    LayerOptions six_film;  // (five distinct critical cosines: 6 ordinates)
-    six_film.ordinates = 6;
-    CHECK_THROWS_AS(stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.083), film, film_joints,
-                                                 SmoothDielectric<double>(1.098, 1.0), five),
-                    std::invalid_argument);
-    const auto b = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 1.083), film, film_joints,
-                                                SmoothDielectric<double>(1.098, 1.0), six_film);
-    CHECK(std::fabs(b.reflectance(0.7).total() + b.transmittance(0.7) - 1) < 1e-12);
+    for (int m : {1, 2, 3, 4}) check_minimum(1.1, three, dense, 1.1, m, 5);
+    // five distinct critical cosines: 6 ordinates
+    check_minimum(1.083, {lossless(0.202, 0.1), lossless(-0.375, 0), lossless(-0.309, 1), lossless(0.465, 0)},
+                  {SmoothDielectric<double>(1.083, 2.597), SmoothDielectric<double>(2.597, 1.071), SmoothDielectric<double>(1.071, 1.098)},
+                  1.098, 5, 6);
     // An index-matched joint needs nothing more, nor slabs that scatter nothing (albedo 0: nothing to trap).
     LayerOptions two;
     two.ordinates = 2;
@@ -551,17 +547,9 @@ TEST_CASE("slabs joined by refracting faces: too few ordinates refused (5, and m
                                                {SmoothDielectric<double>(1.3, 1.8)}, SmoothDielectric<double>(1.8, 1.0), two));
     // More critical cosines than 4 need more than 5 ordinates: 1 | 3.334 | 1.747 | 3.733 | 3.602 | 1 has five, and at
     // 5 ordinates R + T was 0.29 (found by review); it takes 6.
-    const std::vector<Boundary<double>> high{SmoothDielectric<double>(3.334, 1.747), SmoothDielectric<double>(1.747, 3.733),
-                                             SmoothDielectric<double>(3.733, 3.602)};
-    const std::vector<Slab<double>> four{lossless(0.3, 1), lossless(0.3, 1), lossless(0.3, 1), lossless(0.3, 1)};
-    CHECK_THROWS_AS(stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 3.334), four, high,
-                                                 SmoothDielectric<double>(3.602, 1.0), five),
-                    std::invalid_argument);
-    LayerOptions six;
-    six.ordinates = 6;
-    const auto h = stratum::solve_stack<double>(SmoothDielectric<double>(1.0, 3.334), four, high,
-                                                SmoothDielectric<double>(3.602, 1.0), six);
-    for (const double mu : {1.0, 0.5, 0.1}) CHECK(std::fabs(h.reflectance(mu).total() + h.transmittance(mu) - 1) < 1e-12);
+    check_minimum(3.334, {lossless(0.3, 1), lossless(0.3, 1), lossless(0.3, 1), lossless(0.3, 1)},
+                  {SmoothDielectric<double>(3.334, 1.747), SmoothDielectric<double>(1.747, 3.733), SmoothDielectric<double>(3.733, 3.602)},
+                  3.602, 5, 6);
 
     // Random lossless stacks of smooth faces (a quarter over a white floor): R + T = 1 at 5 to 7 ordinates where
     // they are taken (more than the stack's distinct critical cosines), refused where not (at 4, 6 of 1600 failed,
