@@ -567,7 +567,7 @@ TEST_CASE("slabs joined by refracting faces: too few ordinates refused (5, and m
             for (int j = 0; j < count; ++j) {
                 eta.push_back(uniform() < 0.2 ? 1.0 + 0.1 * uniform() : 1.2 + 1.4 * uniform());
                 slabs.push_back(lossless(-0.5 + 1.45 * uniform(), taus[static_cast<int>(uniform() * 5)]));
-                if (j > 0) joints.push_back(SmoothDielectric<double>(eta[j - 1], eta.back()));
+                if (j > 0) joints.push_back(SmoothDielectric<double>(eta[static_cast<std::size_t>(j - 1)], eta.back()));
             }
             const bool floor = uniform() < 0.25;
             LayerOptions o;
