@@ -740,7 +740,8 @@ TEST_CASE("near conservation in float with a peaked delta-M phase function: R an
             const auto f = fluxes(0.0f, one_minus, tau), l = fluxes(0.0L, one_minus, tau);
             INFO("tau " << tau << ", 1 - Omega " << one_minus << ": float R " << double(f.first) << " T " << double(f.second)
                         << ", long double R " << double(l.first) << " T " << double(l.second));
-            CHECK(std::fabs(f.first - l.first) + std::fabs(f.second - l.second) < 5e-4);  // (without refinement 2.1e-4)
+            // (measured: 6.7e-6 at tau 1, 2.1e-4 at tau 100, as without the refinement; with the exact vector 1.0e-3)
+            CHECK(std::fabs(f.first - l.first) + std::fabs(f.second - l.second) < (tau > 10 ? 3e-4 : 2e-5));
             CHECK(f.first + f.second <= 1 + 1e-5);
         }
 }

@@ -2745,15 +2745,15 @@ int minimum_ordinates(const Boundary<Real>& top, const std::vector<Slab<Real>>& 
         refracting = refracting || (!b.rough() && !b.lambertian() && b.eta_above() != b.eta_below());
     for (const Slab<Real>& s : slabs) scattering = scattering || (s.albedo() > 0 && s.optical_thickness() > 0);
     if (!refracting || !scattering) return 1;
+    // The critical cosines inside the slabs as layer_quadrature takes them (before its spacing filter): the top's and
+    // the bottom's where the outside is less dense, each joint's on its denser side.
     std::vector<Real> cuts;
-    const auto add = [&cuts](const Boundary<Real>& b) {
-        if (b.lambertian()) return;
-        const Real r = std::fmin(b.eta_above(), b.eta_below()) / std::fmax(b.eta_above(), b.eta_below());
+    const auto add = [&cuts](Real r) {
         if (r < 1) cuts.push_back(std::sqrt((1 - r) * (1 + r)));
     };
-    add(top);
-    for (const Boundary<Real>& b : interior) add(b);
-    add(bottom);
+    add(top.eta_above() / top.eta_below());
+    for (const Boundary<Real>& b : interior) add(std::fmin(b.eta_above(), b.eta_below()) / std::fmax(b.eta_above(), b.eta_below()));
+    if (!bottom.lambertian()) add(bottom.eta_below() / bottom.eta_above());
     if (bottom.lambertian() && top.eta_above() < top.eta_below())  // (the top's escape cone in every slab, as
         for (const Boundary<Real>& b : interior) {                 // layer_quadrature cuts it over a floor)
             const Real s = top.eta_above() / b.eta_below();
