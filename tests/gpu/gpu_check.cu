@@ -28,12 +28,13 @@
 
 namespace {
 
-constexpr int functions = 8;
+constexpr int functions = 11;
 const char* const names[functions] = {"fresnel_dielectric", "HenyeyGreenstein::eval", "HenyeyGreenstein::sample",
                                       "RoughDielectric::eval", "RoughDielectric::pdf", "RoughDielectric::sample",
-                                      "Dipole::Rd", "lambert_wm1"};
+                                      "Dipole::Rd", "lambert_wm1", "total_diffuse_reflectance",
+                                      "alpha_prime_from_reflectance", "Dipole::sample_radius"};
 // Functions whose result is a component of a unit vector (error counted absolutely, in eps).
-constexpr bool is_direction[functions] = {false, false, true, false, false, true, false, false};
+constexpr bool is_direction[functions] = {false, false, true, false, false, true, false, false, false, false, false};
 constexpr int grid = 64;  // inputs per function
 
 template <class Real>
@@ -81,7 +82,10 @@ STRATUM_HOST_DEVICE Real evaluate(const Objects<Real>& o, int f, const Input<Rea
         case 4: return o.face.pdf(in.wi, in.wo);
         case 5: return o.face.sample(in.wi, t, Real(1) - t, t * t).wo.z;
         case 6: return o.dipole.Rd(Real(4) * t);
-        default: return stratum::lambert_wm1(-Real(0.36787944117144233) * t);
+        case 7: return stratum::lambert_wm1(-Real(0.36787944117144233) * t);
+        case 8: return stratum::total_diffuse_reflectance(t, o.dipole.boundary());
+        case 9: return stratum::alpha_prime_from_reflectance(t, o.dipole.boundary());
+        default: return o.dipole.sample_radius(t);
     }
 }
 
@@ -153,7 +157,7 @@ bool compare(const char* type, bool* cuda_ok) {
             host_worst = std::fmax(host_worst, e_host);
             used = std::fmax(used, std::fmax(e_gpu, e_host) / allowed);
         }
-        std::printf("%-26s %-6s GPU %7.1f  host %7.1f eps%-11s  at most %4.2f of the allowance%s\n", names[f], type,
+        std::printf("%-28s %-6s GPU %7.1f  host %7.1f eps%-11s  at most %4.2f of the allowance%s\n", names[f], type,
                     gpu_worst, host_worst, is_direction[f] ? " (absolute)" : "", used, used > 1 ? "  FAIL" : "");
         pass = pass && used <= 1;
     }
