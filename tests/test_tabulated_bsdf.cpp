@@ -642,6 +642,50 @@ TEST_CASE("sample_cosine_series inverts G(phi) = c_0 phi + sum c_k sin(k phi) / 
     }
 }
 
+TEST_CASE("invert_segment solves the integral of a Hermite cubic segment = r to its stated residual, monotone in r") {
+    // The sampler's inversion in mu_o: x in [0, 1] with h int_0^x p = r, p the cubic through f0, f1 with slopes
+    // d0, d1 (per unit s), to a residual eps^(2/3) scale. The integral here by three-point Gauss-Legendre (exact for
+    // a cubic), not by the segment's own formula. Segments: linear (the starting guess is the root), curved, vanishing
+    // at either end (the marginal at t = 0 and, odd, at t = 1), and steep; r over [0, total], finer near both ends.
+    // (A Newton step taken unevaluated must leave a residual within the bound: a wrong step of 1e-6 fails here.)
+    struct Case {
+        double f0, f1, d0, d1;
+    };
+    const Case cases[] = {{1, 0.5, -0.5, -0.5}, {1, 0.2, 0.5, -1}, {0, 1, 0, 2}, {1, 0, -1, -1}, {1e-3, 1, 0.1, 1},
+                          {0.3, 0.3, 0, 0}};
+    const double eps = std::numeric_limits<double>::epsilon();
+    for (const Case& k : cases) {
+        const stratum::detail::HermiteSegment<double> seg{1.0 / 64, k.f0, k.f1, k.d0, k.d1};
+        auto integral = [&](double x) {  // Gauss-Legendre, 3 points on [0, x]
+            const double a = std::sqrt(0.6), w[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9}, z[3] = {-a, 0, a};
+            double sum = 0;
+            for (int q = 0; q < 3; ++q) sum += w[q] * seg.value(x / 2 * (1 + z[q]));
+            return seg.h * x / 2 * sum;
+        };
+        const double total = integral(1), scale = 3 * total;  // (the sampler passes the whole cdf, larger)
+        const double allowed = std::cbrt(eps * eps) * scale + 1e-14 * total;
+        std::vector<double> fractions;
+        for (int i = 0; i <= 100; ++i) fractions.push_back(i / 100.0);
+        for (int e = 12; e >= 1; --e) fractions.push_back(std::pow(10.0, -e));
+        for (int e = 1; e <= 12; ++e) fractions.push_back(1 - std::pow(10.0, -e));
+        double previous = -1;
+        for (std::size_t i = 0; i < fractions.size(); ++i) {
+            const double r = fractions[i] * total;
+            if (i == 101) previous = -1;  // (the log-spaced fractions restart the monotone run)
+            if (i == 113) previous = -1;
+            const double x = stratum::detail::invert_segment(seg, r, scale);
+            CAPTURE(k.f0);
+            CAPTURE(k.d1);
+            CAPTURE(fractions[i]);
+            REQUIRE(x >= 0);
+            REQUIRE(x <= 1);
+            CHECK(std::fabs(integral(x) - r) <= allowed);
+            CHECK(x >= previous);
+            previous = x;
+        }
+    }
+}
+
 TEST_CASE("the table's surface lobe: RoughDielectric's brdf and reflection density, shadowing from a table of A(mu)") {
     // detail::SurfaceLobe against RoughDielectric (its erfc-based Lambda): the BRDF for every shadowing form and
     // the density D(h) / (4 A_i) against visible_normal_pdf / (4 wo.h), random directions above, grazing included

@@ -120,12 +120,19 @@ Real invert_segment(const HermiteSegment<Real>& seg, Real r, Real scale) noexcep
     const Real q = r / seg.h, disc = seg.f0 * seg.f0 + 2 * (seg.f1 - seg.f0) * q;
     const Real denom = seg.f0 + std::sqrt(disc > 0 ? disc : Real(0));
     Real lo = 0, hi = 1, x = denom > 0 ? clamp_unit(2 * q / denom) : Real(0.5);
+    const Real tolerance = std::cbrt(std::numeric_limits<Real>::epsilon() * std::numeric_limits<Real>::epsilon()) * scale;
+    // |p'(s)| <= 3/2 |f0 - f1| + |d0| + |d1| on [0, 1] (p the cubic): bounds the integral's second derivative / h
+    const Real slope = Real(1.5) * std::fabs(seg.f0 - seg.f1) + std::fabs(seg.d0) + std::fabs(seg.d1);
     for (int it = 0; it < 60; ++it) {
         const Real res = seg.integral(x) - r;
-        if (std::fabs(res) <= std::cbrt(std::numeric_limits<Real>::epsilon() * std::numeric_limits<Real>::epsilon()) * scale) break;
+        if (std::fabs(res) <= tolerance) break;
         if (res > 0) hi = x; else lo = x;
         const Real d = seg.h * seg.value(x);
         const Real next = d > 0 ? x - res / d : Real(-1);
+        const Real step = next - x;
+        // A Newton step leaves a residual of at most h slope step^2 / 2 (Taylor): taken unevaluated where that is
+        // below half the tolerance.
+        if (next > lo && next < hi && seg.h * slope * step * step <= tolerance) return next;
         x = (next > lo && next < hi) ? next : (lo + hi) / 2;
         if (hi - lo <= 4 * std::numeric_limits<Real>::epsilon()) break;
     }
@@ -195,8 +202,13 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
     const Real pi = pi_v<Real>, target = u * c[0] * pi;
     const Real tolerance = std::cbrt(std::numeric_limits<Real>::epsilon() * std::numeric_limits<Real>::epsilon()) * c[0] * pi;
     const AzimuthTables<Real>& tables = azimuth_tables<Real>();
-    Real b[256];  // c_k / k
-    for (int k = 1; k < order; ++k) b[k] = c[k] * tables.reciprocals[static_cast<std::size_t>(k)];
+    Real b[256], kc[256];  // c_k / k and k c_k
+    Real a3 = 0;  // sum k^2 |c_k|, which bounds |g''| (G's third derivative) everywhere
+    for (int k = 1; k < order; ++k) {
+        b[k] = c[k] * tables.reciprocals[static_cast<std::size_t>(k)];
+        kc[k] = Real(k) * c[k];
+        a3 += Real(k) * std::fabs(kc[k]);
+    }
     int j_lo = 0, j_hi = 16;
     Real g_lo = 0, g_hi = c[0] * pi;
     while (j_hi - j_lo > 1) {
@@ -222,7 +234,7 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
         for (int k = 1; k < order; ++k) {
             G += b[k] * s_k;
             g += c[k] * c_k;
-            dg -= Real(k) * c[k] * s_k;
+            dg -= kc[k] * s_k;
             const Real s_next = 2 * cp * s_k - s_prev, c_next = 2 * cp * c_k - c_prev;
             s_prev = s_k;
             s_k = s_next;
@@ -235,6 +247,19 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
         if (r > 0) hi = phi; else lo = phi;
         const Real denominator = 2 * g * g - r * dg;
         const Real next = g > 0 && denominator > 0 ? phi - 2 * r * g / denominator : Real(-1);
+        if (next > lo && next < hi) {
+            // Taken unevaluated where the residual it leaves is surely below half the tolerance: with d the step,
+            // r + g d + g' d^2 / 2 = -d^3 g'^2 / (2 (2 g - g' d)) exactly for Halley's d, and the rest of
+            // G(phi + d) - G(phi) is at most |d|^3 a3 / 6 (Taylor). cos and sin by rotating through d (|d| <= 1/32:
+            // the series to d^7 is exact in double).
+            const Real d = next - phi, d2 = d * d;
+            if (std::fabs(d) <= Real(1) / 32 &&
+                std::fabs(d) * d2 * (dg * dg / (2 * std::fabs(2 * g - dg * d)) + a3 / 6) <= tolerance / 2) {
+                const Real cd = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30));
+                const Real sd = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42)));
+                return {next, cp * cd - sp * sd, sp * cd + cp * sd};
+            }
+        }
         phi = (next > lo && next < hi) ? next : (lo + hi) / 2;
         if (hi - lo <= 4 * std::numeric_limits<Real>::epsilon() * pi) break;
     }
@@ -781,6 +806,7 @@ private:
             int len[16];
             Real w_even[16], w_odd[16];
             int order = 0;  // the longest
+            int shortest = std::numeric_limits<int>::max();
         };
         Stencil stencil(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
                         const detail::SplineWeights<Real>& so, int first) const noexcept {
@@ -794,6 +820,7 @@ private:
                     st.w_even[q] = si.even[a] * so.even[b];
                     st.w_odd[q] = si.odd[a] * so.odd[b];
                     st.order = std::max(st.order, st.len[q]);
+                    st.shortest = std::min(st.shortest, st.len[q]);
                 }
             return st;
         }
@@ -805,7 +832,17 @@ private:
         int interpolate(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
                         const detail::SplineWeights<Real>& so, Real* c, int series = 0) const noexcept {
             const Stencil st = stencil(tab, si, so, series);
-            for (int k = 0; k < st.order; k += 2) {
+            int k = 0;
+            for (; k + 1 < st.shortest; k += 2) {  // modes every pair holds: no tests of the lengths
+                Real even = 0, odd = 0;
+                for (int q = 0; q < 16; ++q) {
+                    even += st.w_even[q] * Real(st.src[q][k]);
+                    odd += st.w_odd[q] * Real(st.src[q][k + 1]);
+                }
+                c[k] = even;
+                c[k + 1] = odd;
+            }
+            for (; k < st.order; k += 2) {
                 Real even = 0, odd = 0;
                 for (int q = 0; q < 16; ++q) {
                     if (k < st.len[q]) even += st.w_even[q] * Real(st.src[q][k]);
@@ -874,7 +911,10 @@ private:
                              const detail::SplineWeights<Real>& so, Real t_o, Real mean, Real value) const noexcept {
             Real m = 0;
             for (int b = 0; b < 4; ++b) m += so.odd[b] * marginal(tab, si, so.first + b);  // m is odd at t = 1
-            const Real jac = detail::parameter_jacobian(t_o);
+            return density_ratio(m, detail::parameter_jacobian(t_o), mean, value);
+        }
+        // The same from m and dmu/dt at t_o.
+        static Real density_ratio(Real m, Real jac, Real mean, Real value) noexcept {
             const Real ratio = jac > std::numeric_limits<Real>::epsilon() ? m / (jac * mean) : Real(1);
             return ratio > 0 ? value * ratio : Real(0);
         }
@@ -1010,15 +1050,19 @@ private:
             if (!(total > 0)) return {};
             const Real target = u1 * total;
             int lo = 0, hi = nn - 1;  // the interval holding the target
-            while (hi - lo > 1) {
+            while (hi - lo > 1) {  // (selects, not branches: the comparisons are unpredictable)
                 const int mid = (lo + hi) / 2;
-                if (cdf(tab, si, mid) <= target) lo = mid; else hi = mid;
+                const bool below = cdf(tab, si, mid) <= target;
+                lo = below ? mid : lo;
+                hi = below ? hi : mid;
             }
             const detail::HermiteSegment<Real> seg =
                 detail::hermite_segment<Real>(nn, lo, false, [&](int b) { return marginal(tab, si, b); });
             const Real x = detail::invert_segment(seg, target - cdf(tab, si, lo), total);
             const Real t_o = detail::clamp_unit(t[static_cast<std::size_t>(lo)] + x * seg.h);
-            const Real mu_o = detail::parameter_cosine(t_o);
+            // mu_o = sin^2(pi t / 2) as parameter_cosine gives it, and dmu/dt = pi sin cos from the same sine
+            const Real sine = std::sin(detail::pi_v<Real> / 2 * t_o), cosine = std::cos(detail::pi_v<Real> / 2 * t_o);
+            const Real mu_o = detail::clamp_unit(sine * sine);
             // A subnormal cosine (t_o below ~1e-154: u1 below ~1e-300) has too few digits for pdf() to find t_o
             // again from it (found by fuzz_renderer: the two densities 0.17% apart); such a grazing sample fails.
             if (!(mu_o >= std::numeric_limits<Real>::min())) return {};
@@ -1041,7 +1085,8 @@ private:
             const Real cos_dphi_o = cos_dphi(wi, out.wo), in = entering(detail::clamp_unit(wi.z));
             const Real g = detail::cosine_series(c, order, cos_dphi_o);
             out.at.value = g > 0 ? g * in : Real(0);
-            out.at.density = sampled_density(tab, si, so, t_o, c[0], out.at.value);
+            // (m at t_o is the segment's value at x: the spline of sampled_density, on the interval it was inverted on)
+            out.at.density = density_ratio(seg.value(x), detail::pi_v<Real> * sine * cosine, c[0], out.at.value);
             if (mu_o < first_cosine) {  // the value as lobe() and lobe_channels() give it there (first_cosine)
                 out.at.value = grazing_exit(tab, si, cos_dphi_o, mu_o) * in;
                 if (channel_values && channels > 1) lobe_channels(tab, wi, out.wo, channel_values);
