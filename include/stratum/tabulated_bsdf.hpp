@@ -860,7 +860,20 @@ private:
         int interpolate_series(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si,
                                const detail::SplineWeights<Real>& so, int first, Real* c) const noexcept {
             const Stencil st = stencil(tab, si, so, first);
-            for (int k = 0; k < st.order; k += 2) {
+            int k = 0;
+            for (; k + 1 < st.shortest; k += 2) {  // modes every pair holds: no tests of the lengths
+                Real even[Count] = {}, odd[Count] = {};
+                for (int q = 0; q < 16; ++q)
+                    for (int s = 0; s < Count; ++s) {
+                        even[s] += st.w_even[q] * Real(st.src[q][s * st.len[q] + k]);
+                        odd[s] += st.w_odd[q] * Real(st.src[q][s * st.len[q] + k + 1]);
+                    }
+                for (int s = 0; s < Count; ++s) {
+                    c[s * kMaxOrder + k] = even[s];
+                    c[s * kMaxOrder + k + 1] = odd[s];
+                }
+            }
+            for (; k < st.order; k += 2) {
                 Real even[Count] = {}, odd[Count] = {};
                 for (int q = 0; q < 16; ++q) {
                     if (k < st.len[q])
