@@ -143,6 +143,17 @@ TEST_CASE("BSSRDF: Hery's recipe gives the painted colour and mean free path; mi
     CHECK(f.pdf({0.3f, 0.1f, 0.0f}, {0.0f, 0.0f, 1.0f}) == doctest::Approx(skin().pdf({0.3, 0.1, 0.0}, {0, 0, 1})).epsilon(1e-5));
 }
 
+TEST_CASE("BSSRDF: the probe's half length is the quantile radius of the most spread channel, whichever it is") {
+    // sigma_tr = sqrt(3 sigma_a (sigma_a + sigma_s')): 1.5 and 0.24738633753705963; the quantile 0.999 of
+    // u e^{-u} du is u = -1 - W_-1(-0.001 / e) = 9.2334134764515857 (mpmath), so the half length is
+    // u / 0.24738633753705963 = 37.323861812168092 with the spread channel second or first (with it second, a
+    // probe sized by channel 0 alone was 6x short; found by mutation testing: the skin fixture's channel 0 is the
+    // most spread).
+    const Dipole<double> narrow(0.5, 1.0, 1.3), wide(0.02, 1.0, 1.3);
+    CHECK(stratum_test::close_rel(DipoleBSSRDF<double, 2>({narrow, wide}).probe_half_length(), 37.323861812168092, 1e-12));
+    CHECK(stratum_test::close_rel(DipoleBSSRDF<double, 2>({wide, narrow}).probe_half_length(), 37.323861812168092, 1e-12));
+}
+
 TEST_CASE("BSSRDF: the probe density stays a number where sigma_tr^2 overflows (found by the renderer sweep)") {
     // float sigma_tr ~ 1e30: sigma_tr^2 overflows, and on the axes the normal is perpendicular to 0 x inf was NaN.
     const DipoleBSSRDF<float, 1> tiny({Dipole<float>::from_reflectance(0.5f, 1e-30f, 1.3f)});

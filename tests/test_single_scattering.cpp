@@ -137,6 +137,18 @@ TEST_CASE("the one-sample estimate with sample_distance is unbiased; averaging t
     CHECK(stratum_test::close_rel(ss.sigma_tc(wi, wo), ss.sigma_t() * (1 + G), 1e-15));
 }
 
+TEST_CASE("the one-sample estimate at sigma_t != 1: its closed form, and integrand / pdf_distance") {
+    // (sigma_s / sigma_t) F p(-wi.wo) e^{-sigma_t s_i'} with s_i' = s_i sqrt(1 - eta^2 (1 - cos_i'^2)) / cos_i', p
+    // per steradian: 0.0028865327919851683 by mpmath (30 digits) for these inputs. At sigma_t = 1 (the test above)
+    // a missing 1 / sigma_t would not show (found by mutation testing).
+    const SingleScattering<double> ss(0.9, 2.5, 0.5, 1.3);
+    const auto wi = direction(0.6, 0.0), wo = direction(0.3, 1.0);
+    CHECK(stratum_test::close_rel(ss.estimate(wi, wo, 0.4, 0.95), 0.0028865327919851683, 1e-14));
+    for (double so : {0.0, 0.1, 1.0, 3.0})
+        CHECK(stratum_test::close_rel(ss.estimate(wi, wo, 0.4, 0.95), ss.integrand(wi, wo, 0.4, so, 0.95) / ss.pdf_distance(so),
+                                      1e-13));
+}
+
 TEST_CASE("sample_distance inverts the exponential CDF, and xi = 0 and xi -> 1 behave") {
     // 1 - e^{-sigma_t s} = xi, evaluated as -expm1(-sigma_t s): a few ulp.
     const SingleScattering<double> ss(0.5, 2.5, 0.0, 1.3);
