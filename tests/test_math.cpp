@@ -12,6 +12,7 @@
 #include <limits>
 #include <vector>
 
+#include "reference/rough_albedo_reference.hpp"
 #include "test_util.hpp"
 
 using stratum::Shadowing;
@@ -103,7 +104,7 @@ TEST_CASE("the BTDF's Beta function agrees with the previous three-lgamma form")
     for (double a : values)
         for (double b : values) {
             const double got = stratum::detail::smith_g2<double>(a, b, Shadowing::height_correlated, true);
-            const double g2g1 = stratum::detail::smith_g2_over_g1<double>(a, b, Shadowing::height_correlated, true);
+            const double g2g1 = stratum_test::smith_g2_over_g1<double>(a, b, Shadowing::height_correlated, true);
             const long double ld = std::exp(std::lgamma(1 + static_cast<long double>(a)) +
                                             std::lgamma(1 + static_cast<long double>(b)) -
                                             std::lgamma(2 + static_cast<long double>(a) + b));

@@ -166,25 +166,6 @@ STRATUM_HOST_DEVICE W smith_g2(W li, W lo, Shadowing form, bool transmission) no
     }
 }
 
-/// G2 / G1(i) with G1(i) = 1 / (1 + li), finite also at li = inf (grazing incidence); used where the visible
-/// normal distribution (which contains G1(i)) is the integration measure.
-template <class W>
-STRATUM_HOST_DEVICE W smith_g2_over_g1(W li, W lo, Shadowing form, bool transmission) noexcept {
-    const W inf = std::numeric_limits<W>::infinity();
-    switch (form) {
-        case Shadowing::masking_only: return W(1);
-        case Shadowing::separable: return 1 / (1 + lo);
-        case Shadowing::height_correlated:
-        default:
-            if (!transmission) return li == inf ? (lo == inf ? W(0) : W(1)) : 1 / (1 + lo / (1 + li));
-            if (lo == inf) return W(0);
-            if (li == inf) return lo == 0 ? W(1) : W(0);
-            // (1 + li) B(1 + li, 1 + lo) < (1 + li) 4^{-m}, m = min(li, lo): 0 in every type for m > 1e15.
-            if (!(std::fmin(li, lo) <= W(1e15))) return W(0);
-            return std::exp(std::log1p(li) + log_beta1(li, lo));
-    }
-}
-
 }  // namespace detail
 
 /// Rough dielectric interface: a Gaussian microsurface of RMS slope sigma between media of indices

@@ -3,9 +3,10 @@
 // nodes, ~30 ms at 40) but simple; test-only. What it shares with the library, and what it does not: its
 // quadrature is its own (long Gaussian range L = sqrt(ln(1/eps)) + 1, two fixed breakpoint grids, no pair
 // grading, no Taylor tables: exact Lambda and the Beta function per facet), so it checks the fast path's
-// panelling, maps, tables and series; the integrand's pieces (fresnel_dielectric, Beckmann::Lambda,
-// detail::smith_g2_over_g1) are the library's, each checked on its own against mpmath (test_fresnel.cpp,
-// test_microfacet.cpp, test_math.cpp) and the whole integrand against a facet-level Monte Carlo
+// panelling, maps, tables and series; the integrand's pieces are the library's (fresnel_dielectric,
+// Beckmann::Lambda, detail::log_beta1), each checked on its own against mpmath (test_fresnel.cpp,
+// test_microfacet.cpp, test_math.cpp; smith_g2_over_g1 below is this file's, in test_math.cpp against
+// (1 + a) B(1 + a, 1 + b)) and the whole integrand against a facet-level Monte Carlo
 // (test_interface_energy.cpp). Its own error at 40 nodes, measured against 56: <= 4e-9 (masking_only near the
 // critical-angle / refracted-horizon tangency), <= 3e-10 otherwise.
 #pragma once
@@ -25,6 +26,26 @@ using stratum::Beckmann;
 using stratum::Quadrature;
 using stratum::Shadowing;
 using stratum::detail::pi_v;
+
+// G2 / G1(i) with G1(i) = 1 / (1 + li), finite also at li = inf (grazing incidence): the shadowing where the visible
+// normal distribution (which contains G1(i)) is the integration measure. (Test-only: the library's fast path
+// integrates otherwise; it lived in interface.hpp, used by nothing there.)
+template <class W>
+W smith_g2_over_g1(W li, W lo, Shadowing form, bool transmission) noexcept {
+    const W inf = std::numeric_limits<W>::infinity();
+    switch (form) {
+        case Shadowing::masking_only: return W(1);
+        case Shadowing::separable: return 1 / (1 + lo);
+        case Shadowing::height_correlated:
+        default:
+            if (!transmission) return li == inf ? (lo == inf ? W(0) : W(1)) : 1 / (1 + lo / (1 + li));
+            if (lo == inf) return W(0);
+            if (li == inf) return lo == 0 ? W(1) : W(0);
+            // (1 + li) B(1 + li, 1 + lo) < (1 + li) 4^{-m}, m = min(li, lo): 0 in every type for m > 1e15.
+            if (!(std::fmin(li, lo) <= W(1e15))) return W(0);
+            return std::exp(std::log1p(li) + stratum::detail::log_beta1(li, lo));
+    }
+}
 
 template <class W>
 HemisphericalTotals<W> rough_albedo_reference(W sigma, W mu, W eta, Shadowing form, int n) {
@@ -162,12 +183,12 @@ HemisphericalTotals<W> rough_albedo_reference(W sigma, W mu, W eta, Shadowing fo
         const W w = weight * std::exp(-x * x - y * y) * proj;
         const W F = stratum::fresnel_dielectric(c, eta);
         const W or_z = 2 * c * hz - mu;
-        if (or_z > 0 && F > 0) R += w * F * stratum::detail::smith_g2_over_g1(li, dist.Lambda(or_z), form, false);
+        if (or_z > 0 && F > 0) R += w * F * smith_g2_over_g1(li, dist.Lambda(or_z), form, false);
         const W sin2_t = (1 - c) * (1 + c) / (eta * eta);
         if (sin2_t < 1 && F < 1) {
             const W cos_t = std::sqrt(1 - sin2_t);
             const W ot_z = (c / eta - cos_t) * hz - mu / eta;
-            if (ot_z < 0) T += w * (1 - F) * stratum::detail::smith_g2_over_g1(li, dist.Lambda(-ot_z), form, true);
+            if (ot_z < 0) T += w * (1 - F) * smith_g2_over_g1(li, dist.Lambda(-ot_z), form, true);
         }
     };
     for (int j = 0; j + 1 < ny; ++j) {
