@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "test_util.hpp"
@@ -613,6 +614,8 @@ TEST_CASE("sample_cosine_series inverts G(phi) = c_0 phi + sum c_k sin(k phi) / 
     // in 11% of the samples; withdrawn, found by review), with u also log-spaced towards 0 and 1 below.
     series.push_back({1.0, -1.0});
     series.push_back({1.5, -2.0, 0.5});
+    series.push_back({1.0, 1.0});  // the zero at pi (a Halley step taken unevaluated left 2.7x the residual at
+                                   // u = 1 - 1e-10: its bound cancelled where g ~ 0; found by review)
     const double residual = std::cbrt(std::numeric_limits<double>::epsilon() * std::numeric_limits<double>::epsilon()) * pi;
     for (const std::vector<double>& c : series) {
         const int order = static_cast<int>(c.size());
@@ -639,6 +642,23 @@ TEST_CASE("sample_cosine_series inverts G(phi) = c_0 phi + sum c_k sin(k phi) / 
             if (order != 3) CHECK(phi >= previous);  // (the dipping series' G is not monotone: any root will do)
             previous = phi;
         }
+    }
+    // Densities near a zero where that step's cancelling bound accepted a step leaving 155x and 1150x the residual
+    // (phi 1.66e-4 for 0.0476, 3.14144 for 3.09514; found by review).
+    const std::vector<std::pair<std::vector<double>, double>> reviewed = {
+        {{1.0612030824470329, -1.2302170172698224, 0.068756590496974967, 0.092703836275872184, 0.0075535080499420371},
+         5.6675938706574464e-09},
+        {{0.40348714197077762, 0.0081239933625356781, -0.48230768569294036, 0.051713073494858472, 0.11184179905702779,
+          -0.030470638067548302, -0.0024132187479894013, 0.0011917623282951945, -4.9845468735113184e-05},
+         0.99999995798780905}};
+    for (const auto& item : reviewed) {
+        const std::vector<double>& c = item.first;
+        const double u = item.second;
+        const auto az = stratum::detail::sample_cosine_series(c.data(), static_cast<int>(c.size()), u);
+        long double G = c[0] * static_cast<long double>(az.phi);
+        for (std::size_t k = 1; k < c.size(); ++k) G += c[k] * std::sin(static_cast<long double>(k) * az.phi) / k;
+        CAPTURE(u);
+        CHECK(std::fabs(static_cast<double>(G) - u * c[0] * pi) <= residual * c[0] + 1e-14 * c[0]);
     }
 }
 

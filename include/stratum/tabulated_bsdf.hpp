@@ -248,13 +248,13 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
         const Real denominator = 2 * g * g - r * dg;
         const Real next = g > 0 && denominator > 0 ? phi - 2 * r * g / denominator : Real(-1);
         if (next > lo && next < hi) {
-            // Taken unevaluated where the residual it leaves is surely below half the tolerance: with d the step,
-            // r + g d + g' d^2 / 2 = -d^3 g'^2 / (2 (2 g - g' d)) exactly for Halley's d, and the rest of
-            // G(phi + d) - G(phi) is at most |d|^3 a3 / 6 (Taylor). cos and sin by rotating through d (|d| <= 1/32:
-            // the series to d^7 is exact in double).
-            const Real d = next - phi, d2 = d * d;
-            if (std::fabs(d) <= Real(1) / 32 &&
-                std::fabs(d) * d2 * (dg * dg / (2 * std::fabs(2 * g - dg * d)) + a3 / 6) <= tolerance / 2) {
+            // Taken unevaluated where the residual it leaves is surely below half the tolerance: for Halley's d the
+            // quadratic model r + g d + g' d^2 / 2 leaves r (g' d / (2 g))^2 in magnitude (= d^3 g'^2 / (2 (2 g - g'
+            // d)) in exact arithmetic; that form cancels where g is near 0 and accepted steps that left almost all
+            // of r: found by review), and the rest of G(phi + d) - G(phi) is at most |d|^3 a3 / 6 (Taylor). cos and
+            // sin by rotating through d (|d| <= 1/32: the series to d^7 is exact in double).
+            const Real d = next - phi, d2 = d * d, q = dg * d / (2 * g);
+            if (std::fabs(d) <= Real(1) / 32 && std::fabs(r) * q * q + std::fabs(d) * d2 * a3 / 6 <= tolerance / 2) {
                 const Real cd = 1 - d2 / 2 * (1 - d2 / 12 * (1 - d2 / 30));
                 const Real sd = d * (1 - d2 / 6 * (1 - d2 / 20 * (1 - d2 / 42)));
                 return {next, cp * cd - sp * sd, sp * cd + cp * sd};
