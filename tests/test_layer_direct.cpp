@@ -76,27 +76,58 @@ TEST_CASE("between Fresnel faces the unscattered beam is the geometric series of
     // Air | n = 1.5 | n = 1.33 (glass over water), tau = 0.5. Inside at mu_t (Snell), with d = e^{-tau / mu_t},
     // r21 = F(mu_t, 1 / 1.5) and r23 = F(mu_t, 1.33 / 1.5):
     //   T = (1 - F_12(mu)) d (1 - r23) / (1 - r21 r23 d^2),   R = (1 - F_12(mu)) d^2 r23 (1 - r21) / (1 - r21 r23 d^2).
+    // In long double, with each face's reflectance taken on its well-conditioned side (Fresnel's flux reflectance is
+    // the same from both): r21 = F_12(mu), r23 = F(mu_3, 1.5 / 1.33) at the cosine in the water from the invariant
+    // n sin(theta), mu_3^2 = ((1.33 - 1)(1.33 + 1) + mu^2) / 1.33^2. (From mu_t, at grazing incidence within
+    // mu^2 / (2 n^2 mu_c) = 3e-13 of the top's critical cosine mu_c, the rounding of mu_t alone changed 1 - r21 by
+    // ~1e-4 relative.) At grazing incidence 1 - F_12 = O(mu) carries ~1e-16 / (1 - F_12) of relative rounding.
     const double n2 = 1.5, n3 = 1.33, tau = 0.5;
     const auto layer = solve_layer(Slab<double>(0.8, 0.6, tau), SmoothDielectric<double>(1.0, n2),
                                    SmoothDielectric<double>(n2, n3), ordinates(8));
-    for (const double mu : {1.0, 0.8, 0.3, 0.05, 1e-6}) {
+    const auto fresnel = [](long double c, long double n) {
+        const long double g = std::sqrt((n - 1) * (n + 1) + c * c);
+        const long double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
+        return a * a * (1 + b * b) / 2;
+    };
+    for (const double mu : {1.0, 0.8, 0.3, 0.05, 1e-3, 1e-6}) {
         INFO("mu " << mu);
-        const double mu_t = std::sqrt(1 - (1 - mu * mu) / (n2 * n2));
-        const double d = std::exp(-tau / mu_t), f12 = fresnel_closed_form(mu, n2);
-        const double r21 = fresnel_closed_form(mu_t, 1 / n2), r23 = fresnel_closed_form(mu_t, n3 / n2);
-        const double series = (1 - f12) * d / (1 - r21 * r23 * d * d);
-        // At grazing incidence 1 - F_12 = O(mu) cancels in the reference: ~1e-16 / (1 - F_12) relative. There
-        // mu_t is also within mu^2 / (2 n^2 mu_c) = 3e-13 of the top's critical cosine mu_c, where 1 - r21 grows
-        // like the square root of the distance: the rounding of mu_t alone changes 1 - r21 by ~1e-4 relative.
-        const double tolerance = 1e-13 + 1e-16 / (1 - f12);
-        CHECK(close_rel(layer.direct_transmittance(mu), series * (1 - r23), tolerance));
-        CHECK(close_rel(layer.direct_reflectance(mu), series * d * r23 * (1 - r21), mu > 1e-3 ? tolerance : 1e-3));
+        const long double m = mu, mu_t = std::sqrt(1 - (1 - m * m) / (1.5L * 1.5L));
+        const long double mu_3 = std::sqrt(((1.33L - 1) * (1.33L + 1) + m * m) / (1.33L * 1.33L));
+        const long double d = std::exp(-0.5L / mu_t), f12 = fresnel(m, 1.5L), r21 = f12, r23 = fresnel(mu_3, 1.5L / 1.33L);
+        const long double series = (1 - f12) * d / (1 - r21 * r23 * d * d);
+        const double tolerance = 1e-13 + 1e-16 / static_cast<double>(1 - f12);
+        CHECK(close_rel(layer.direct_transmittance(mu), static_cast<double>(series * (1 - r23)), tolerance));
+        CHECK(close_rel(layer.direct_reflectance(mu), static_cast<double>(series * d * r23 * (1 - r21)), tolerance));
     }
     // A denser substrate (n3 = 1.7): no total internal reflection at the bottom for the beam; and a lighter one
     // below the critical cosine of the top is never reached from outside (mu_t > critical cosine always).
     const auto dense = solve_layer(Slab<double>(0.8, 0.6, tau), SmoothDielectric<double>(1.0, n2),
                                    SmoothDielectric<double>(n2, 1.7), ordinates(8));
     CHECK(dense.direct_transmittance(0.5) > 0);
+}
+
+template <class Real>
+void check_grazing_beam_leaves(double mu, double tolerance) {
+    // No slab (tau = 0) between smooth faces 1 | 1.4 | 1: T = (1 - r) / (1 + r) and R = 2 r / (1 + r), r = F(mu) the
+    // faces' flux reflectance (the same for the beam inside, whose invariant n sin(theta) is the outside's), here
+    // in long double. Near grazing the beam's cosine inside rounds onto the bottom's critical cosine: taken from
+    // it, the bottom reflected the beam totally (T = 0, R + T = 1 - 6e-4 at mu 1e-4 in float; double at 1e-9).
+    const long double c = mu, n = 1.4L, g = std::sqrt((n - 1) * (n + 1) + c * c);
+    const long double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
+    const long double r = a * a * (1 + b * b) / 2;
+    const auto layer = solve_layer(Slab<Real>(Real(0.5), Real(0.3), Real(0)), SmoothDielectric<Real>(1, Real(1.4)),
+                                   SmoothDielectric<Real>(Real(1.4), 1), ordinates(8));
+    const double t = static_cast<double>(layer.transmittance(static_cast<Real>(mu)));
+    const double total = t + static_cast<double>(layer.reflectance(static_cast<Real>(mu)).total());
+    CAPTURE(mu);
+    CHECK(close_rel(t, static_cast<double>((1 - r) / (1 + r)), tolerance));
+    CHECK(std::fabs(total - 1) <= 4 * static_cast<double>(std::numeric_limits<Real>::epsilon()));
+}
+
+TEST_CASE("a beam at grazing incidence leaves an empty slab between smooth faces (found by a review sweep)") {
+    // 1 - F(mu) = O(mu) carries eps / mu of relative rounding: 2e-4 at mu 3e-4 in float, 2e-7 at 1e-9 in double.
+    for (const double mu : {1e-2, 1e-3, 3e-4, 1e-4, 3e-5}) check_grazing_beam_leaves<float>(mu, 2e-3);
+    for (const double mu : {1e-4, 1e-7, 1e-9, 1e-10}) check_grazing_beam_leaves<double>(mu, 2e-5);
 }
 
 TEST_CASE("delta-M's forward peak is 0 without delta-M, for g <= 0, for rough faces and for an opaque shortcut") {

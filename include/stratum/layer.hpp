@@ -2332,6 +2332,21 @@ private:
         const Real r21 = top_.smooth_interface().reflectance(-mu), r23 = bottom_.smooth_interface().reflectance(mu);
         return {d, r21, r23, Real(1) - r21 * r23 * d * d};
     }
+    // The same for the beam that entered at mu_i (mu_t = top_face().internal_cosine(mu_i) > 0), with the faces'
+    // reflectances inside taken from outside, where they are well conditioned (a face's Fresnel flux reflectance is
+    // the same from both sides): r21 at mu_i, r23 at the cosine below from the invariant n sin(theta),
+    // mu_b^2 = ((n_b - n_a)(n_b + n_a) + n_a^2 mu_i^2) / n_b^2. From mu_t they cancelled for grazing mu_i: mu_t rounds
+    // onto the bottom's critical cosine and a beam that leaves was taken as trapped (1 | 1.4 | 1 at mu 1e-4 in float:
+    // R + T = 1 - 6e-4; double lost 6e-9 at mu 1e-9; found by a review sweep).
+    DirectBeam entering_beam(Real mu_i, Real mu_t, Real tau) const noexcept {
+        const SmoothDielectric<Real>& top = top_.smooth_interface();
+        const SmoothDielectric<Real>& bottom = bottom_.smooth_interface();
+        const Real na = top.eta_above(), nb = bottom.eta_below();
+        const Real below2 = ((nb - na) * (nb + na) + na * na * mu_i * mu_i) / (nb * nb);
+        const Real d = std::isinf(tau) ? Real(0) : std::exp(-tau / mu_t);
+        const Real r21 = top.reflectance(mu_i), r23 = below2 > 0 ? bottom.reflectance(-std::sqrt(below2)) : Real(1);
+        return {d, r21, r23, Real(1) - r21 * r23 * d * d};
+    }
 
     // The beam between two specular boundaries (see direct_transmittance), exactly at mu_i, attenuated by the
     // optical thickness tau (beam_tau_: the unscattered beam; direct_tau_: delta-M's, with the forward peak): it
@@ -2343,14 +2358,11 @@ private:
         if (beam_ && beam_->refracting) return stack_direct(mu_i, transmitted, tau == direct_tau_);
         const Real mu_t = top_face().internal_cosine(mu_i);
         if (!(mu_t > 0)) return Real(0);
-        // Trapped: rounding puts mu_t exactly on the critical cosine for grazing incidence (mu_i^2 below the rounding
-        // of eta^2 - 1) with tau = 0; the true value there is O(T_12(mu_i)) = O(mu_i) < 1e-7.
-        const DirectBeam beam = direct_beam(mu_t, tau);
+        const DirectBeam beam = entering_beam(mu_i, mu_t, tau);
         if (beam.trapped()) return Real(0);
-        const SmoothDielectric<Real>& t = top_.smooth_interface();
-        const Real into = t.transmittance(mu_i) * beam.d * beam.bounces();
-        return transmitted ? into * bottom_.smooth_interface().transmittance(mu_t)
-                           : into * beam.r23 * beam.d * t.transmittance(-mu_t);
+        // (out through the bottom with 1 - r23, or back through the top with 1 - r21: entering_beam)
+        const Real into = top_.smooth_interface().transmittance(mu_i) * beam.d * beam.bounces();
+        return transmitted ? into * (1 - beam.r23) : into * beam.r23 * beam.d * (1 - beam.r21);
     }
 
     // The fraction of the flux at mu_i (from above) that a specular top over refracting joints and a rough bottom
@@ -2411,7 +2423,7 @@ private:
         // The shares are Lagrange weights and may be negative; where the spread extracts less than half the
         // true beam's energy the scale is capped at 2, so that the spread's overshoot is not amplified.
         if (!(spread > 0)) return Real(1);
-        return std::fmin(total * direct_beam(mu_t, direct_tau_).extracted() / spread, Real(2));
+        return std::fmin(total * entering_beam(mu_i, mu_t, direct_tau_).extracted() / spread, Real(2));
     }
 
     // reflectance(mu_i).subsurface, whatever the outputs requested (ambient() is it by reciprocity).
@@ -3560,7 +3572,7 @@ std::vector<typename LayeredSurface<Real>::DepthPoint> LayeredSurface<Real>::dep
             net += two_pi * q_.weights[n] * q_.nodes[n] * (down - up);
         }
         if (direct_separated_ && mu_t > 0) {
-            const DirectBeam beam = direct_beam(mu_t, direct_tau_);
+            const DirectBeam beam = entering_beam(mu_i, mu_t, direct_tau_);
             if (!beam.trapped()) {
                 const Real into = top_.smooth_interface().transmittance(mu_i) * beam.bounces();
                 const Real going_down = into * std::exp(-d.scaled_depth / mu_t);
