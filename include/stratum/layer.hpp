@@ -1147,7 +1147,7 @@ public:
             Real mu_o = -1;
             int modes = 0;
         } beam_y_key[2];
-        std::vector<Real> small, small_rhs, small_e, path_c, path_e, path_up, path_down;
+        std::vector<Real> small, small_rhs, small_e, path_c, path_e, path_up, path_down, faces;
         std::vector<Real> scratch;
         detail::Matrix<Real> rhs;
     };
@@ -1906,7 +1906,9 @@ private:
     // (over a Lambertian floor r_bottom = 0: the floor's diffuse light is in up_{L-1}). Solved in place: on return
     // up[j] = P_j and down[j] = Q_j. For the beam: up = 0, down = 0 and from_top = T_12(mu_i) (flux) gives the
     // flux entering each slab going down, e F (its top), and going up, e G (its bottom).
-    void bounce(const Real* c, const Real* e, bool radiance, Real from_top, Real* up, Real* down, Workspace& ws) const {
+    // `faces` (optional): the faces' flux reflectances (top, joints, bottom; beam_faces) in place of those at c.
+    void bounce(const Real* c, const Real* e, bool radiance, Real from_top, Real* up, Real* down, Workspace& ws,
+                const Real* faces = nullptr) const {
         const std::size_t count = beam_->slabs.size(), n = 2 * count;
         std::vector<Real>& a = ws.small;
         std::vector<Real>& x = ws.small_rhs;
@@ -1925,24 +1927,53 @@ private:
             x[q] = down[j];
             // F_j (down-going entering slab j from above), times e_j, into Q_j's row
             if (j == 0) {
-                a[q * n + p] -= e[j] * top.reflectance(-c[0]);
+                a[q * n + p] -= e[j] * (faces ? faces[0] : top.reflectance(-c[0]));
                 x[q] += e[j] * from_top;
             } else {
                 const SmoothDielectric<Real>& joint = beam_->joints[j - 1];
-                a[q * n + (2 * (j - 1) + 1)] -= e[j] * trans(joint, c[j - 1]);
-                a[q * n + p] -= e[j] * joint.reflectance(-c[j]);
+                a[q * n + (2 * (j - 1) + 1)] -= e[j] * (faces ? 1 - faces[j] : trans(joint, c[j - 1]));
+                a[q * n + p] -= e[j] * (faces ? faces[j] : joint.reflectance(-c[j]));
             }
             // G_j (up-going entering slab j from below), times e_j, into P_j's row
             if (j + 1 == count) {
-                if (beam_->floor < 0) a[p * n + q] -= e[j] * bottom.reflectance(c[j]);
+                if (beam_->floor < 0) a[p * n + q] -= e[j] * (faces ? faces[count] : bottom.reflectance(c[j]));
             } else {
                 const SmoothDielectric<Real>& joint = beam_->joints[j];
-                if (c[j + 1] > 0) a[p * n + (2 * (j + 1))] -= e[j] * trans(joint, -c[j + 1]);
-                a[p * n + q] -= e[j] * (c[j + 1] > 0 ? joint.reflectance(c[j]) : Real(1));
+                if (c[j + 1] > 0) a[p * n + (2 * (j + 1))] -= e[j] * (faces ? 1 - faces[j + 1] : trans(joint, -c[j + 1]));
+                a[p * n + q] -= e[j] * (c[j + 1] > 0 ? (faces ? faces[j + 1] : joint.reflectance(c[j])) : Real(1));
             }
         }
         solve_small(a.data(), x.data(), n);
         for (std::size_t j = 0; j < count; ++j) up[j] = x[2 * j], down[j] = x[2 * j + 1];
+    }
+
+    // For the beam entering at mu_i from above: its cosine x[j] in each slab (0 where none reaches) and the faces'
+    // flux reflectances r[0] (top), r[j] (joint j, between slabs j - 1 and j), r[count] (bottom), each taken from the
+    // face's less dense side, where Fresnel is well conditioned (its flux reflectance is the same from both sides;
+    // 1 where nothing passes). Every cosine comes from the outside's by the invariant n sin(theta),
+    // x_j^2 = ((n_j - n_a)(n_j + n_a) + n_a^2 mu_i^2) / n_j^2: exact where n_j = n_a, without cancellation where
+    // n_j > n_a. (Followed from cosine to cosine inside, a grazing beam's rounded onto a critical cosine: 1 | 1.4 |
+    // 1.5 | 1 with empty slabs at mu 1e-4 in float gave T 6.0e-4 for 3.0e-4, and double lost the beam at 1e-9.)
+    void beam_faces(Real mu_i, Real* x, Real* r) const noexcept {
+        const std::vector<Real>& eta = beam_->eta;
+        const std::size_t count = eta.size();
+        const SmoothDielectric<Real>& top = top_.smooth_interface();
+        const SmoothDielectric<Real>& bottom = bottom_.smooth_interface();
+        const Real na = top.eta_above(), a2 = na * na * mu_i * mu_i;
+        const auto cosine = [&](Real n) {
+            const Real c2 = ((n - na) * (n + na) + a2) / (n * n);
+            return c2 > 0 ? std::sqrt(c2) : Real(0);
+        };
+        for (std::size_t j = 0; j < count; ++j) x[j] = cosine(eta[j]);
+        for (std::size_t j = 1; j < count; ++j) x[j] = x[j - 1] > 0 ? x[j] : Real(0);  // (beyond a total reflection)
+        // a face between media of indices n_up (cosine c_up) and n_down (c_down): from the less dense side
+        const auto face = [](const SmoothDielectric<Real>& f, Real c_up, Real c_down) {
+            if (!(c_up > 0) || !(c_down > 0)) return Real(1);
+            return f.eta_above() <= f.eta_below() ? f.reflectance(c_up) : f.reflectance(-c_down);
+        };
+        r[0] = face(top, mu_i, x[0]);
+        for (std::size_t j = 1; j < count; ++j) r[j] = face(beam_->joints[j - 1], x[j - 1], x[j]);
+        r[count] = face(bottom, x[count - 1], cosine(bottom.eta_below()));
     }
 
     // The beam's passes for incidence mu_i: per slab its cosine x[j], and the flux entering it going down (at its
@@ -1950,10 +1981,11 @@ private:
     // discrete field loses to it) or the true ones (the unscattered beam). False where no light enters.
     bool beam_passes(Real mu_i, bool scaled, Real* x, Real* f_down, Real* f_up, Workspace& ws) const {
         const std::size_t count = beam_->slabs.size();
-        const Real x0 = top_face().internal_cosine(mu_i);
         const Real entering = top_.smooth_interface().transmittance(mu_i);
-        if (!(x0 > 0) || !(entering > 0)) return false;
-        snell_chain(0, x0, x);
+        std::vector<Real>& r = ws.faces;
+        r.resize(count + 1);
+        beam_faces(mu_i, x, r.data());
+        if (!(x[0] > 0) || !(entering > 0)) return false;
         std::vector<Real>& e = ws.small_e;
         e.resize(count);
         for (std::size_t j = 0; j < count; ++j) {
@@ -1961,27 +1993,24 @@ private:
             e[j] = !(x[j] > 0) || std::isinf(tau) ? Real(0) : std::exp(-tau / x[j]);
             f_down[j] = f_up[j] = 0;
         }
-        bounce(x, e.data(), false, entering, f_up, f_down, ws);  // P_j, Q_j: up at the top, down at the bottom
+        bounce(x, e.data(), false, entering, f_up, f_down, ws, r.data());  // P_j, Q_j: up at the top, down at the bottom
         // The fluxes entering each slab, F_j from above and G_j from below, from P and Q by the connections of
         // bounce() (not as P / e and Q / e: e underflows for an opaque slab).
         std::vector<Real>& p = ws.small_rhs;  // (bounce's scratch, free again)
         p.assign(2 * count, Real(0));
-        const SmoothDielectric<Real>& top = top_.smooth_interface();
         for (std::size_t j = 0; j < count; ++j) {
             if (!(x[j] > 0)) continue;
             Real from_above, from_below = 0;
             if (j == 0) {
-                from_above = entering + top.reflectance(-x[0]) * f_up[0];
+                from_above = entering + r[0] * f_up[0];
             } else {
-                const SmoothDielectric<Real>& joint = beam_->joints[j - 1];
-                from_above = joint.transmittance(x[j - 1]) * f_down[j - 1] + joint.reflectance(-x[j]) * f_up[j];
+                from_above = (1 - r[j]) * f_down[j - 1] + r[j] * f_up[j];
             }
             if (j + 1 == count) {
-                if (beam_->floor < 0) from_below = bottom_.smooth_interface().reflectance(x[j]) * f_down[j];
+                if (beam_->floor < 0) from_below = r[count] * f_down[j];
             } else {
-                const SmoothDielectric<Real>& joint = beam_->joints[j];
-                from_below = (x[j + 1] > 0 ? joint.transmittance(-x[j + 1]) * f_up[j + 1] : Real(0)) +
-                             (x[j + 1] > 0 ? joint.reflectance(x[j]) : Real(1)) * f_down[j];
+                from_below = (x[j + 1] > 0 ? (1 - r[j + 1]) * f_up[j + 1] : Real(0)) +
+                             (x[j + 1] > 0 ? r[j + 1] : Real(1)) * f_down[j];
             }
             p[2 * j] = from_above;
             p[2 * j + 1] = from_below;
@@ -2000,11 +2029,11 @@ private:
         if (transmitted) {
             const Real tau = scaled ? beam_->slabs[last].optical_thickness() : beam_->true_tau[last];
             const Real e = !(x[last] > 0) || std::isinf(tau) ? Real(0) : std::exp(-tau / x[last]);
-            return beam_->floor >= 0 ? Real(0) : down[last] * e * bottom_.smooth_interface().transmittance(x[last]);
+            return beam_->floor >= 0 ? Real(0) : down[last] * e * (1 - ws.faces[count]);
         }
         const Real tau = scaled ? beam_->slabs[0].optical_thickness() : beam_->true_tau[0];
         const Real e = std::isinf(tau) ? Real(0) : std::exp(-tau / x[0]);
-        return up[0] * e * top_.smooth_interface().transmittance(-x[0]);
+        return up[0] * e * (1 - ws.faces[0]);
     }
 
     // The diffuse field of incidence mu_i, modes < `modes`: each slab's response to the beam's passes (at its own
