@@ -389,6 +389,20 @@ TEST_CASE("requests: each shortcut agrees with the full solution") {
         // At tau = 20 the diffuse light still reaches the bottom (e^{-0.3 * 20} ~ 2e-3): no shortcut.
         const auto thin = solve_layer(Slab<double>(0.9, 0.8, 20.0), top, bottom, options, r);
         CHECK(thin.reflectance(0.7).subsurface != infinite.reflectance(0.7).subsurface);
+        // Nor at tau = 25 (e^{-0.3 * 25} = 5.5e-4): within the tolerance of the finite solve (found by mutation
+        // testing: a shortcut judged by e^{-tau}, 1.4e-11 here, took it and missed by 1.2e-7), and a weakly absorbing
+        // slab (albedo 0.99, tau 10) at tolerance 1e-3 within 1e-3 (2.6e-9 measured; that shortcut 7.8e-3 off).
+        const auto finite25 = solve_layer(Slab<double>(0.9, 0.8, 25.0), top, bottom, options, f);
+        CHECK(std::fabs(solve_layer(Slab<double>(0.9, 0.8, 25.0), top, bottom, options, r).reflectance(0.7).subsurface -
+                        finite25.reflectance(0.7).subsurface) <= 1e-9);
+        LayerRequest<double> loose;
+        loose.outputs = LayerOutput::subsurface_reflection | LayerOutput::reflectance;
+        loose.tolerance = 1e-3;
+        LayerRequest<double> whole;
+        whole.outputs = loose.outputs;
+        const Slab<double> weak(0.99, 0.0, 10.0);
+        CHECK(std::fabs(solve_layer(weak, top, bottom, options, loose).reflectance(0.7).subsurface -
+                        solve_layer(weak, top, bottom, options, whole).reflectance(0.7).subsurface) <= 1e-3);
     }
 }
 
