@@ -33,13 +33,8 @@ LayerOptions ordinates(int m, bool delta_m = true) {
     return o;
 }
 
-// Fresnel's flux reflectance F(c, n) from the less dense side at cosine c, n = n_t / n_i > 1, in long double (the
-// closed form of test_util.hpp's fresnel_closed_form).
-long double fresnel_long(long double c, long double n) {
-    const long double g = std::sqrt((n - 1) * (n + 1) + c * c);
-    const long double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
-    return a * a * (1 + b * b) / 2;
-}
+// Fresnel's flux reflectance F(c, n) from the less dense side at cosine c, n = n_t / n_i > 1, in long double.
+long double fresnel_long(long double c, long double n) { return stratum_test::fresnel_closed_form(c, n); }
 
 }  // namespace
 
@@ -127,9 +122,9 @@ void check_grazing_beam_leaves(double mu, double tolerance) {
 
 TEST_CASE("a beam at grazing incidence leaves an empty slab between smooth faces (found by a review sweep)") {
     // 1 - F(mu) ~ 6 mu carries eps / (6 mu) of relative rounding: 3.3e-4 at mu 3e-5 in float (measured 1.8e-4; 2.6e-4
-    // at 1e-4), 3.7e-7 at 1e-10 in double.
-    for (const double mu : {1e-2, 1e-3, 3e-4, 1e-4, 3e-5}) check_grazing_beam_leaves<float>(mu, 2e-3);
-    for (const double mu : {1e-4, 1e-7, 1e-9, 1e-10}) check_grazing_beam_leaves<double>(mu, 2e-5);
+    // at 1e-4), 3.7e-7 at 1e-10 in double (measured 6.6e-7: a few such roundings).
+    for (const double mu : {1e-2, 1e-3, 3e-4, 1e-4, 3e-5}) check_grazing_beam_leaves<float>(mu, 5e-4);
+    for (const double mu : {1e-4, 1e-7, 1e-9, 1e-10}) check_grazing_beam_leaves<double>(mu, 2e-6);
 }
 
 template <class Real>
@@ -157,8 +152,8 @@ void check_grazing_beam_leaves_stack(double mu, double tolerance) {
 
 TEST_CASE("a beam at grazing incidence leaves a stack of empty slabs whose joints refract") {
     // (r_3 from outside at mu: the beam leaves into air, n sin(theta) = sin(theta_outside); rounding as above)
-    for (const double mu : {1e-2, 1e-3, 1e-4, 3e-5}) check_grazing_beam_leaves_stack<float>(mu, 2e-3);
-    for (const double mu : {1e-4, 1e-8, 1e-9, 1e-10}) check_grazing_beam_leaves_stack<double>(mu, 2e-5);
+    for (const double mu : {1e-2, 1e-3, 1e-4, 3e-5}) check_grazing_beam_leaves_stack<float>(mu, 5e-4);
+    for (const double mu : {1e-4, 1e-8, 1e-9, 1e-10}) check_grazing_beam_leaves_stack<double>(mu, 2e-6);
 }
 
 template <class Real>
@@ -196,12 +191,12 @@ void check_grazing_joint_mirror(double mu, double tolerance) {
 TEST_CASE("a beam at grazing incidence over a denser substrate, and back out of a stack over a rough bottom") {
     // (tolerances: 1 - F ~ 6 mu carries eps / (6 mu) of relative rounding, 1e-2 at mu 1e-6 in float, where only the
     // energy is checked)
-    for (const double mu : {1e-2, 1e-4}) check_grazing_beam_over_denser_substrate<float>(mu, 2e-3);
+    for (const double mu : {1e-2, 1e-4}) check_grazing_beam_over_denser_substrate<float>(mu, 5e-4);
     for (const double mu : {1e-6, 1e-9}) check_grazing_beam_over_denser_substrate<float>(mu, 0);
-    for (const double mu : {1e-4, 1e-8, 1e-10}) check_grazing_beam_over_denser_substrate<double>(mu, 2e-5);
-    for (const double mu : {1e-3, 1e-4}) check_grazing_joint_mirror<float>(mu, 2e-3);
+    for (const double mu : {1e-4, 1e-8, 1e-10}) check_grazing_beam_over_denser_substrate<double>(mu, 2e-6);
+    for (const double mu : {1e-3, 1e-4}) check_grazing_joint_mirror<float>(mu, 5e-4);
     for (const double mu : {1e-6, 1e-8, 1e-10}) check_grazing_joint_mirror<float>(mu, 0);  // (finite: float's F rounds to 1)
-    for (const double mu : {1e-4, 1e-8, 1e-10}) check_grazing_joint_mirror<double>(mu, 2e-5);
+    for (const double mu : {1e-4, 1e-8, 1e-10}) check_grazing_joint_mirror<double>(mu, 2e-6);
 }
 
 TEST_CASE("without delta-M a peaked phase function keeps energy: the beam spread over the ordinates gets the true beam's") {

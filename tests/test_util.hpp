@@ -34,13 +34,15 @@ inline stratum::Vec3<double> direction_at(double mu, double phi) {
 
 /// Unpolarized Fresnel reflectance of a dielectric for cos(incidence) c and relative index n (Born & Wolf),
 /// written out here so that tests do not share code with fresnel.hpp; g - c = (n - 1)(n + 1) / (g + c) keeps
-/// the relative accuracy for n near 1. Total internal reflection (n^2 - 1 + c^2 < 0) gives 1.
-inline double fresnel_closed_form(double c, double n) {
-    const double g2 = (n - 1) * (n + 1) + c * c;
-    if (g2 <= 0) return 1.0;
-    const double g = std::sqrt(g2);
-    const double a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
-    return 0.5 * a * a * (1 + b * b);
+/// the relative accuracy for n near 1. Total internal reflection (n^2 - 1 + c^2 < 0) gives 1. In double, or in long
+/// double for references of double results.
+template <class T>
+T fresnel_closed_form(T c, T n) {
+    const T g2 = (n - 1) * (n + 1) + c * c;
+    if (g2 <= 0) return T(1);
+    const T g = std::sqrt(g2);
+    const T a = (n - 1) * (n + 1) / ((g + c) * (g + c)), b = (c * (g + c) - 1) / (c * (g - c) + 1);
+    return a * a * (1 + b * b) / 2;
 }
 
 /// Distance in units in the last place between two finite values of the same type: the number of
