@@ -79,6 +79,25 @@ void BM_tabulated_build(benchmark::State& state) {
 }
 BENCHMARK(BM_tabulated_build)->ArgsProduct({{2, 3, 4}, {0, 1}})->Unit(benchmark::kMillisecond);
 
+// The same slab between smooth faces (1 | 1.4 | 1: the beam as a source, exits at the nodes' true angles), 1e-2.
+void BM_tabulated_build_smooth(benchmark::State& state) {
+    static const stratum::LayeredSurface<double> layer = [] {
+        stratum::LayerOptions options;
+        options.ordinates = 16;
+        return stratum::solve_layer(stratum::Slab<double>::from_transparency(0.9, 0.8, 0.5),
+                                    stratum::SmoothDielectric<double>(1.0, 1.4), stratum::SmoothDielectric<double>(1.4, 1.0),
+                                    options);
+    }();
+    int nodes = 0;
+    for (auto _ : state) {
+        const stratum::TabulatedBSDF<double> t(layer, 1e-2);
+        nodes = t.grid_size();
+        benchmark::DoNotOptimize(nodes);
+    }
+    state.counters["nodes"] = nodes;
+}
+BENCHMARK(BM_tabulated_build_smooth)->Unit(benchmark::kMillisecond);
+
 // Per call, cycling through the fixed inputs; range(0) = -log10(tolerance).
 template <class Real>
 void BM_tabulated_eval(benchmark::State& state) {

@@ -85,9 +85,10 @@ TEST_CASE("beam source: at an ordinate, the response is the slab's own column of
             // the radiance at an exit cosine that is an ordinate, by the source function and reciprocity
             for (std::size_t n = 0; n < m; ++n) {
                 s.beam.respond(s.q.nodes[n], s.modes, at_y, scratch);
+                std::vector<double> rs(static_cast<std::size_t>(s.modes)), ts(rs.size());
+                s.beam.exit(at_x, at_y, s.modes, rs.data(), ts.data());
                 for (int k = 0; k < s.modes; ++k) {
-                    double r = 0, t = 0;
-                    s.beam.exit(at_x, at_y, k, &r, &t);
+                    const double r = rs[static_cast<std::size_t>(k)], t = ts[static_cast<std::size_t>(k)];
                     const std::size_t i = static_cast<std::size_t>(k) * m + n;
                     worst_exit = std::fmax(worst_exit, std::fmax(std::fabs(r - at_x.up[i]), std::fabs(t - at_x.down[i])));
                 }
@@ -137,9 +138,9 @@ TEST_CASE("beam source: continuous through a resonance 1/x = lambda_j (the secul
             const std::size_t m = s.q.size(), off = static_cast<std::size_t>(k) * m;
             if (i < m) return b.up[off + i];
             if (i < 2 * m) return b.down[off + i - m];
-            double r = 0, t = 0;
-            s.beam.exit(b, at_y, k, &r, &t);
-            return i == 2 * m ? r : t;
+            std::vector<double> r(static_cast<std::size_t>(k) + 1), t(r.size());
+            s.beam.exit(b, at_y, k + 1, r.data(), t.data());
+            return i == 2 * m ? r.back() : t.back();
         };
         const double h = 1e-3;
         for (std::size_t i = 0; i < 2 * s.q.size() + 2; ++i) {
@@ -169,9 +170,10 @@ TEST_CASE("beam source: a thin slab's radiance at any exit cosine is single scat
         for (const double y : {0.15, 0.5, 0.91}) {
             s.beam.respond(x, s.modes, at_x, scratch);
             s.beam.respond(y, s.modes, at_y, scratch);
+            double rs[4], ts[4];
+            s.beam.exit(at_x, at_y, 4, rs, ts);
             for (int k = 0; k < 4; ++k) {
-                double r = 0, t = 0;
-                s.beam.exit(at_x, at_y, k, &r, &t);
+                const double r = rs[k], t = ts[k];
                 const double f = omega * tau / (4 * pi * x * y);
                 const double r_single = f * stratum::phase_fourier_coefficient(s.chi, -x, y, k);
                 const double t_single = f * stratum::phase_fourier_coefficient(s.chi, x, y, k);

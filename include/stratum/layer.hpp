@@ -1142,12 +1142,13 @@ public:
         // response to a beam at the exit cosine, scratch
         detail::BeamField<Real> beam;
         std::vector<detail::BeamResponse<Real>> beam_y[2];  // per side (reflection, transmission), per slab
-        struct {  // what beam_y[side] holds: the layer's beam source (its serial number), the exit cosine, the modes
+        std::vector<Real> beam_y_leave[2];  // per side: leave()'s weights of up_j and down_j (P, Q of bounce) at the exit
+        struct {  // what beam_y[side] and beam_y_leave[side] hold: the layer's beam source (its serial number), the exit cosine, the modes
             std::uint64_t owner = 0;
             Real mu_o = -1;
             int modes = 0;
         } beam_y_key[2];
-        std::vector<Real> small, small_rhs, small_e, path_c, path_e, path_up, path_down, faces;
+        std::vector<Real> small, small_rhs, small_e, path_c, path_e, path_up, path_down, path_exits, faces;
         std::vector<Real> scratch;
         detail::Matrix<Real> rhs;
     };
@@ -2159,19 +2160,25 @@ private:
             at_y.resize(count);
             for (std::size_t j = 0; j < count; ++j)
                 if (y[j] > 0) beam_->slabs[j].respond(y[j], f.modes, at_y[j], ws.scratch);
+            leave_weights(transmitted, ws.beam_y_leave[transmitted ? 1 : 0], ws);
             key = {beam_->serial, mu_o, f.modes};
         }
+        const std::vector<Real>& leaving = ws.beam_y_leave[transmitted ? 1 : 0];
         const Real two_pi = 2 * detail::pi_v<Real>;
         std::vector<Real>& up = ws.path_up;
         std::vector<Real>& down = ws.path_down;
+        std::vector<Real>& exits = ws.path_exits;  // per slab, the modes of r, then of t (SlabBeam::exit)
+        exits.assign(2 * count * kk, Real(0));
+        for (std::size_t j = 0; j < count; ++j)
+            if (y[j] > 0 && f.x[j] > 0)
+                beam_->slabs[j].exit(f.response[j], at_y[j], f.modes, &exits[2 * j * kk], &exits[(2 * j + 1) * kk]);
         for (std::size_t k = 0; k < kk; ++k) {
             const Real scale = two_pi / (k == 0 ? Real(1) : Real(2));
             up.assign(count, Real(0));
             down.assign(count, Real(0));
             for (std::size_t j = 0; j < count; ++j) {
                 if (!(y[j] > 0) || !(f.x[j] > 0)) continue;
-                Real r = 0, t = 0;
-                beam_->slabs[j].exit(f.response[j], at_y[j], static_cast<int>(k), &r, &t);
+                const Real r = exits[2 * j * kk + k], t = exits[(2 * j + 1) * kk + k];
                 Real eu = f.flux_down[j] * r + f.flux_up[j] * t, ed = f.flux_down[j] * t + f.flux_up[j] * r;
                 const Real* d = f.d.data() + (k * count + j) * m;
                 const Real* w = f.w.data() + (k * count + j) * m;
@@ -2187,7 +2194,26 @@ private:
             // (the emissions of slabs the exit direction cannot reach do not leave at it: a slab below a joint that
             // totally reflects y, whose rows were not computed, has y[j] = 0)
             if (beam_->floor >= 0 && k == 0 && y[count - 1] > 0) up[count - 1] += e[count - 1] * f.floor_radiance;
-            out[k] = leave(transmitted, up.data(), down.data(), ws);
+            Real sum = 0;
+            for (std::size_t j = 0; j < count; ++j) sum += leaving[2 * j] * up[j] + leaving[2 * j + 1] * down[j];
+            out[k] = sum;
+        }
+    }
+
+    // leave() is linear in the slabs' emissions: its weights w[2j] of up_j and w[2j + 1] of down_j on the exit path
+    // (ws.path_c, ws.path_e), one bounce() per emission, so that each mode and incidence costs a dot product (a
+    // table's exits see 32 modes and 129 incidences each).
+    void leave_weights(bool transmitted, std::vector<Real>& w, Workspace& ws) const {
+        const std::size_t count = beam_->slabs.size();
+        w.assign(2 * count, Real(0));
+        std::vector<Real>& up = ws.path_up;
+        std::vector<Real>& down = ws.path_down;
+        for (std::size_t i = 0; i < 2 * count; ++i) {
+            if (!(ws.path_c[i / 2] > 0)) continue;
+            up.assign(count, Real(0));
+            down.assign(count, Real(0));
+            (i % 2 == 0 ? up : down)[i / 2] = 1;
+            w[i] = leave(transmitted, up.data(), down.data(), ws);
         }
     }
 
@@ -3911,13 +3937,17 @@ std::vector<Real> LayeredSurface<Real>::fourier_coefficients(LayerOutput which, 
     if (!requested || kk == 0) return out;
     Workspace ws;
     if (beam_) {  // between specular faces: the modes of the radiance at the true exit angle (beam_exit)
-        for (std::size_t a = 0; a < mu_i.size(); ++a) {
-            if (!(mu_i[a] > 0)) continue;
-            const detail::BeamField<Real>& f = beam_field(mu_i[a], modes_, ws);
-            for (std::size_t b = 0; b < no; ++b) {
-                if (!(mu_o[b] > 0)) continue;
+        // Every incidence's field first, then the exits outermost: beam_exit computes the slabs' responses at an
+        // exit cosine once for all incidences (per pair they cost 25x the rest: 129 nodes, 16 ordinates).
+        std::vector<detail::BeamField<Real>> fields(mu_i.size());
+        for (std::size_t a = 0; a < mu_i.size(); ++a)
+            if (mu_i[a] > 0) fields[a] = beam_field(mu_i[a], modes_, ws);
+        for (std::size_t b = 0; b < no; ++b) {
+            if (!(mu_o[b] > 0)) continue;
+            for (std::size_t a = 0; a < mu_i.size(); ++a) {
+                if (!(mu_i[a] > 0)) continue;
                 Real* a_k = out.data() + (a * no + b) * kk;
-                beam_exit(f, mu_o[b], transmitted, a_k, ws);
+                beam_exit(fields[a], mu_o[b], transmitted, a_k, ws);
                 for (std::size_t k = 0; k < kk; ++k) a_k[k] *= mu_o[b];
             }
         }

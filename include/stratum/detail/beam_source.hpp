@@ -51,6 +51,7 @@
 // error 3.4e-4 with the energy condition alone, 3.8e-5 with both (measured).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <limits>
@@ -102,8 +103,10 @@ public:
     int modes() const noexcept { return modes_; }
 
     /// same[k M + m] = p_k(x, mu_m), opposite[k M + m] = p_k(-x, mu_m) for k < modes (each K * M long); mode 0
-    /// rescaled to conserve energy on the ordinates (see the top of this file). scratch: resized as needed.
-    void at(Real x, Real* same, Real* opposite, int modes, std::vector<Real>& scratch) const {
+    /// rescaled to conserve energy on the ordinates (see the top of this file). scratch: resized as needed. Where
+    /// `lambda` is given (K (N + 1) long), the normalized associated Legendre values Lambda_{k+j}^k(x) go to
+    /// lambda[k (N + 1) + j] (j <= N - k), for between().
+    void at(Real x, Real* same, Real* opposite, int modes, std::vector<Real>& scratch, Real* lambda = nullptr) const {
         const std::size_t m_size = size_;
         SectoralSeed<Real> seed(x);
         for (int k = 0; k < modes; ++k) {
@@ -125,6 +128,7 @@ public:
                 if (j > 0) st.step(c[j]);
                 lam[j] = st.value();
             }
+            if (lambda) std::copy(lam, lam + count, lambda + static_cast<std::size_t>(k) * row_length());
             std::fill(even, even + 2 * m_size, Real(0));
             for (std::size_t j = 0; j < count; ++j) {  // degrees n = k + j; Lambda_n^k(-x) = (-1)^j Lambda_n^k(x)
                 Real* acc = j % 2 == 0 ? even : odd;
@@ -186,8 +190,21 @@ public:
     /// The moments behind it.
     const std::vector<Real>& moments() const noexcept { return chi_; }
 
-    /// p_k(x, y) for two arbitrary cosines in [-1, 1] (not rescaled: single scattering between two true directions).
-    Real between(Real x, Real y, int k) const noexcept { return phase_fourier_coefficient(chi_, x, y, k); }
+    /// p_k(x, y) and p_k(-x, y) (not rescaled: single scattering between two true directions) into *plus and *minus,
+    /// from the Legendre values at x and y that at() gave: sum_n (2 - delta_k0)(2n + 1) chi_n Lambda_n^k(x)
+    /// Lambda_n^k(y), the terms of odd n - k negated for -x. N - k + 1 multiply-adds, where the recurrences of
+    /// phase_fourier_coefficient cost 25x that in a table's exits (a new y for every incidence; measured).
+    void between(const Real* lambda_x, const Real* lambda_y, int k, Real* plus, Real* minus) const noexcept {
+        Real even = 0, odd = 0;
+        if (k < static_cast<int>(table_.size())) {
+            const std::size_t count = static_cast<std::size_t>(degree_ - k + 1), off = static_cast<std::size_t>(k) * row_length();
+            for (std::size_t j = 0; j < count; ++j) (j % 2 == 0 ? even : odd) += weight(k, j) * lambda_x[off + j] * lambda_y[off + j];
+        }
+        *plus = even + odd;
+        *minus = even - odd;
+    }
+    /// The length of a mode's row in at()'s `lambda`: N + 1.
+    std::size_t row_length() const noexcept { return static_cast<std::size_t>(degree_ + 1); }
 
 private:
     Real weight(int k, std::size_t j) const noexcept {
@@ -228,12 +245,13 @@ struct BeamResponse {
         // (ratio <= 2 or so (respond() chooses the points so); its power overflows only for k beyond ~256 in float,
         // where mode k at x, ~ (1 - x^2)^{k/2} with 1 - x ~ s, is below any value's rounding: 0 then, not inf x 0.)
         Real mode_weight(int k) const noexcept {
-            if (k == 0) return weight;
+            if (k == 0 || sine_ratio == 1) return weight;
             const Real w = weight * std::pow(std::sqrt(sine_ratio), static_cast<Real>(k));
             return std::isfinite(w) ? w : Real(0);
         }
         std::vector<Real> zp, zm, e;  // e: per mode, e^{-tau/x} (the same for every mode; kept per point)
         std::vector<Real> same, opposite;  // the phase rows at x (only beside a resonance; else the response's)
+        std::vector<Real> lambda;          // Legendre values at x (PhaseAtOrdinates::at; only beside a resonance)
     };
     Real x = 0;
     int modes = 0;
@@ -241,6 +259,7 @@ struct BeamResponse {
     Point point[2];
     std::vector<Real> up, down;           // K blocks of M
     std::vector<Real> same, opposite;     // p_k(x, mu_m), p_k(-x, mu_m) at the true x (K blocks of M)
+    std::vector<Real> lambda;             // Legendre values at the true x (PhaseAtOrdinates::at, K blocks of N + 1)
 };
 
 /// A slab's beam source: its ordinates, its (delta-M scaled) optical thickness and phase function, and its solved
@@ -315,7 +334,8 @@ public:
         out.down.assign(kk * m_size, Real(0));
         out.same.resize(kk * m_size);
         out.opposite.resize(kk * m_size);
-        phase_.at(x, out.same.data(), out.opposite.data(), modes, scratch);
+        out.lambda.assign(kk * phase_.row_length(), Real(0));
+        phase_.at(x, out.same.data(), out.opposite.data(), modes, scratch, out.lambda.data());
         // Evaluation points: x itself, or two beside a resonance 1/x = lambda_j, within a relative s = 4 sqrt(eps) of
         // it. (In float s = 1.4e-3 is wide: across a resonance near the normal the interpolation can be far off, a
         // BTDF along the normal 0.0152 for double's 0.0089 (README, known limitations); a narrower s = 1e-4 traded that
@@ -352,7 +372,8 @@ public:
             if (out.points == 2) {  // (beside a resonance: the phase rows at the evaluation point itself)
                 pt.same.resize(kk * m_size);
                 pt.opposite.resize(kk * m_size);
-                phase_.at(pt.x, pt.same.data(), pt.opposite.data(), modes, scratch);
+                pt.lambda.assign(kk * phase_.row_length(), Real(0));
+                phase_.at(pt.x, pt.same.data(), pt.opposite.data(), modes, scratch, pt.lambda.data());
                 ps = pt.same.data();
                 po = pt.opposite.data();
             }
@@ -365,42 +386,53 @@ public:
         }
     }
 
-    /// Mode k of the diffuse radiance leaving at cosine y in (0, 1] for the beam of `beam`: up at the top (*r) and
-    /// down at the bottom (*t); at_y is the response to a beam at y (respond(y, ...)), whose rows give the
-    /// homogeneous part (see the top of this file).
-    void exit(const BeamResponse<Real>& beam, const BeamResponse<Real>& at_y, int k, Real* r, Real* t) const {
-        *r = *t = 0;
-        const SlabBeamMode<Real>& md = modes_[static_cast<std::size_t>(k)];
-        if (!md.scatters) return;
-        const std::size_t m_size = mu_.size(), off = static_cast<std::size_t>(k) * m_size;
-        const Real y = at_y.x, b = 1 / y, two_pi = 2 * pi_v<Real>, delta = k == 0 ? Real(1) : Real(2);
+    /// Modes k < `modes` (<= both responses' modes) of the diffuse radiance leaving at cosine y in (0, 1] for the beam
+    /// of `beam`: up at the top (r[k]) and down at the bottom (t[k]); at_y is the response to a beam at y
+    /// (respond(y, ...)), whose rows give the homogeneous part (see the top of this file).
+    void exit(const BeamResponse<Real>& beam, const BeamResponse<Real>& at_y, int modes, Real* r, Real* t) const {
+        const std::size_t kk = static_cast<std::size_t>(modes);
+        std::fill(r, r + kk, Real(0));
+        std::fill(t, t + kk, Real(0));
+        const Real y = at_y.x, b = 1 / y;
         for (int p = 0; p < beam.points; ++p) {
             const typename BeamResponse<Real>::Point& pt = beam.point[p];
-            const Real* zp = pt.zp.data() + off;
-            const Real* zm = pt.zm.data() + off;
-            const Real e = pt.e[static_cast<std::size_t>(k)], x = pt.x, a = 1 / x;
-            const Real beta = delta / (two_pi * x);
-            Real sigma_up = beta * phase_.between(-x, y, k), sigma_down = beta * phase_.between(x, y, k);
-            Real hom_up = 0, hom_down = 0;
-            for (std::size_t m = 0; m < m_size; ++m) {
-                const Real ps = at_y.same[off + m], po = at_y.opposite[off + m];
-                sigma_up += w_[m] * (ps * zp[m] + po * zm[m]);
-                sigma_down += w_[m] * (ps * zm[m] + po * zp[m]);
-                const Real scale = w_[m] * mu_[m] * two_pi / delta;
-                const Real rr = scale * at_y.up[off + m], tt = scale * at_y.down[off + m];
-                hom_up -= rr * zm[m] + tt * zp[m] * e;
-                hom_down -= tt * zm[m] + rr * zp[m] * e;
-            }
-            sigma_up *= md.omega_k;
-            sigma_down *= md.omega_k;
+            const Real x = pt.x, a = 1 / x;
             const Real up_path = std::isinf(tau_) ? Real(1) / ((a + b) * y) : -std::expm1(-(a + b) * tau_) / ((a + b) * y);
             const Real down_path = exponential_difference(a, b, tau_) / y;
-            *r += pt.mode_weight(k) * (sigma_up * up_path + hom_up);
-            *t += pt.mode_weight(k) * (sigma_down * down_path + hom_down);
+            const Real* lambda_x = beam.points == 2 ? pt.lambda.data() : beam.lambda.data();
+            for (std::size_t k = 0; k < kk; ++k)
+                if (modes_[k].scatters) exit_mode(pt, at_y, lambda_x, static_cast<int>(k), up_path, down_path, r + k, t + k);
         }
     }
 
 private:
+    // One point's share of exit() in mode k: the single scattering of the beam's pass along the exit's path and the
+    // homogeneous part, weighted by the point's mode weight.
+    void exit_mode(const typename BeamResponse<Real>::Point& pt, const BeamResponse<Real>& at_y, const Real* lambda_x, int k,
+                   Real up_path, Real down_path, Real* r, Real* t) const {
+        const SlabBeamMode<Real>& md = modes_[static_cast<std::size_t>(k)];
+        const std::size_t m_size = mu_.size(), off = static_cast<std::size_t>(k) * m_size;
+        const Real two_pi = 2 * pi_v<Real>, delta = k == 0 ? Real(1) : Real(2);
+        const Real* zp = pt.zp.data() + off;
+        const Real* zm = pt.zm.data() + off;
+        const Real e = pt.e[static_cast<std::size_t>(k)], beta = delta / (two_pi * pt.x);
+        Real p_plus = 0, p_minus = 0;  // p_k(x, y), p_k(-x, y)
+        phase_.between(lambda_x, at_y.lambda.data(), k, &p_plus, &p_minus);
+        Real sigma_up = beta * p_minus, sigma_down = beta * p_plus;
+        Real hom_up = 0, hom_down = 0;
+        for (std::size_t m = 0; m < m_size; ++m) {
+            const Real ps = at_y.same[off + m], po = at_y.opposite[off + m];
+            sigma_up += w_[m] * (ps * zp[m] + po * zm[m]);
+            sigma_down += w_[m] * (ps * zm[m] + po * zp[m]);
+            const Real scale = w_[m] * mu_[m] * two_pi / delta;
+            const Real rr = scale * at_y.up[off + m], tt = scale * at_y.down[off + m];
+            hom_up -= rr * zm[m] + tt * zp[m] * e;
+            hom_down -= tt * zm[m] + rr * zp[m] * e;
+        }
+        *r += pt.mode_weight(k) * (sigma_up * md.omega_k * up_path + hom_up);
+        *t += pt.mode_weight(k) * (sigma_down * md.omega_k * down_path + hom_down);
+    }
+
     // P(c) / (1 - f) - P'(c): the exact phase function over the truncated one (both normalized to 4 pi).
     Real difference(Real c) const noexcept {
         c = std::fmin(Real(1), std::fmax(Real(-1), c));
