@@ -192,8 +192,8 @@ public:
 
     /// p_k(x, y) and p_k(-x, y) (not rescaled: single scattering between two true directions) into *plus and *minus,
     /// from the Legendre values at x and y that at() gave: sum_n (2 - delta_k0)(2n + 1) chi_n Lambda_n^k(x)
-    /// Lambda_n^k(y), the terms of odd n - k negated for -x. N - k + 1 multiply-adds, where the recurrences of
-    /// phase_fourier_coefficient cost 25x that in a table's exits (a new y for every incidence; measured).
+    /// Lambda_n^k(y), the terms of odd n - k negated for -x, for k below the modes this was built for (0 beyond).
+    /// N - k + 1 multiply-adds, where phase_fourier_coefficient runs two recurrences per call (tests/test_beam_source.cpp).
     void between(const Real* lambda_x, const Real* lambda_y, int k, Real* plus, Real* minus) const noexcept {
         Real even = 0, odd = 0;
         if (k < static_cast<int>(table_.size())) {
