@@ -3937,18 +3937,24 @@ std::vector<Real> LayeredSurface<Real>::fourier_coefficients(LayerOutput which, 
     if (!requested || kk == 0) return out;
     Workspace ws;
     if (beam_) {  // between specular faces: the modes of the radiance at the true exit angle (beam_exit)
-        // Every incidence's field first, then the exits outermost: beam_exit computes the slabs' responses at an
-        // exit cosine once for all incidences (per pair they cost 25x the rest: 129 nodes, 16 ordinates).
-        std::vector<detail::BeamField<Real>> fields(mu_i.size());
-        for (std::size_t a = 0; a < mu_i.size(); ++a)
-            if (mu_i[a] > 0) fields[a] = beam_field(mu_i[a], modes_, ws);
-        for (std::size_t b = 0; b < no; ++b) {
-            if (!(mu_o[b] > 0)) continue;
-            for (std::size_t a = 0; a < mu_i.size(); ++a) {
-                if (!(mu_i[a] > 0)) continue;
-                Real* a_k = out.data() + (a * no + b) * kk;
-                beam_exit(fields[a], mu_o[b], transmitted, a_k, ws);
-                for (std::size_t k = 0; k < kk; ++k) a_k[k] *= mu_o[b];
+        // A block of incidences' fields first, then the exits outermost: beam_exit computes the slabs' responses at
+        // an exit cosine once for the block (per pair they cost 25x the rest: 129 nodes, 16 ordinates). Blocks of 32
+        // bound the fields held (all 129 at once: 623 MB at M = 64 for three slabs; found by review), for 28% more
+        // time than all at once (a 129-node table at M = 16; blocks of 16: 62%).
+        constexpr std::size_t block = 32;
+        std::vector<detail::BeamField<Real>> fields(std::min(block, mu_i.size()));
+        for (std::size_t first = 0; first < mu_i.size(); first += block) {
+            const std::size_t last = std::min(mu_i.size(), first + block);
+            for (std::size_t a = first; a < last; ++a)
+                if (mu_i[a] > 0) fields[a - first] = beam_field(mu_i[a], modes_, ws);
+            for (std::size_t b = 0; b < no; ++b) {
+                if (!(mu_o[b] > 0)) continue;
+                for (std::size_t a = first; a < last; ++a) {
+                    if (!(mu_i[a] > 0)) continue;
+                    Real* a_k = out.data() + (a * no + b) * kk;
+                    beam_exit(fields[a - first], mu_o[b], transmitted, a_k, ws);
+                    for (std::size_t k = 0; k < kk; ++k) a_k[k] *= mu_o[b];
+                }
             }
         }
         return out;
