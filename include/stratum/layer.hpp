@@ -1304,6 +1304,8 @@ public:
     /// The faces as solved: light arrives through top() from above and leaves below through bottom().
     const Boundary<Real>& top() const noexcept { return top_; }
     const Boundary<Real>& bottom() const noexcept { return bottom_; }
+    /// The refractive index of each slab, top to bottom (top().eta_below(), then each joint's index below it).
+    const std::vector<Real>& slab_indices() const noexcept { return indices_; }
 
     /// Inside the layer at a requested depth (LayerRequest::depths; through a stack, in the slab holding it), for a
     /// beam of unit irradiance arriving with cosine mu_i in (0, 1]: the fluence rate phi = int L dw over all
@@ -2517,6 +2519,7 @@ private:
     }
 
     Boundary<Real> top_, bottom_;
+    std::vector<Real> indices_;  // slab_indices()
     detail::SharedOperators<Real> top_ops_, bottom_ops_;  // null when nothing was solved; shared with PreparedBoundary
     bool bottom_turned_top_ = false;                       // bottom_ops_ is top_ops_ flipped (built with it)
     bool symmetric_ = false;  // one slab between a rough face and that face turned over: the same seen from below
@@ -2944,6 +2947,8 @@ LayeredSurface<Real> LayeredSurface<Real>::solve(const Boundary<Real>& top, cons
     if (std::optional<LayeredSurface> simpler = solve_simpler(top, slabs, interior, bottom, options, request, prepared))
         return std::move(*simpler);
     LayeredSurface s(top, bottom);
+    s.indices_.push_back(top.eta_below());
+    for (const Boundary<Real>& b : interior) s.indices_.push_back(b.eta_below());
     s.top_entry_ = prepared.top_entry ? prepared.top_entry
                                       : std::make_shared<const detail::EntryTransmittance<Real>>(top, Incidence::from_above);
     // A bottom face that is the top turned over lets light in from below as the top does from above (bit for bit).

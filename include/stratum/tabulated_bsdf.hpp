@@ -27,12 +27,80 @@ namespace stratum {
 
 namespace detail {
 
-// Cubic Hermite (Catmull-Rom) interpolation on the uniform grid t_j = j / (n - 1) (n >= 4) of the values f_j of a
-// function of t: on [t_j, t_j+1], with s = (n - 1)(u - t_j),
+// The table's variable t in [0, 1] and its grid. Mode k of the coefficients behaves like sin^k(theta) near the
+// normal and like a power of mu near grazing, square roots in mu; so does a lobe beside a kink, where total
+// internal reflection begins at a critical cosine mu_c seen from outside (like sqrt(mu - mu_c) on one side, 0 on
+// the other; TabulatedBSDF::kink_cosines). [0, 1] is cut at the kinks into pieces; on piece p, between the cosines
+// mu_a and mu_b (0, the kinks, 1) and the parameters t_a and t_b,
+//     mu = mu_a + (mu_b - mu_a) sin^2(pi s / 2),   s = (t - t_a) / (t_b - t_a),
+// whose slope vanishes at both ends: every such square root is smooth in t on each side. Without kinks one piece,
+// mu = sin^2(pi t / 2). Each piece is ruled uniformly: ends[p] and ends[p + 1] are the nodes that bound it
+// (ends[0] = 0, ends.back() = n - 1), scale[p] its intervals per unit of t, edge[p] and edge[p + 1] its cosines.
+template <class Real>
+struct Grid {
+    std::vector<Real> t;
+    std::vector<int> ends;
+    std::vector<Real> scale, edge;
+    int n() const noexcept { return static_cast<int>(t.size()); }
+    // The piece holding interval [t_j, t_j+1].
+    std::size_t piece(int j) const noexcept {
+        std::size_t p = 0;
+        while (p + 2 < ends.size() && j >= ends[p + 1]) ++p;
+        return p;
+    }
+    // mu at t, and dmu/dt, from the same sine. (One piece: the map without kinks, in as few operations as before
+    // kinks were cut: eval, pdf and sample call these.)
+    struct Point {
+        Real mu, jacobian;
+    };
+    Point at(Real u) const noexcept {
+        if (edge.size() == 2) {
+            const Real sine = std::sin(pi_v<Real> / 2 * u), cosine = std::cos(pi_v<Real> / 2 * u), mu = sine * sine;
+            return {mu > Real(1) ? Real(1) : (mu > Real(0) ? mu : Real(0)), pi_v<Real> * sine * cosine};
+        }
+        const std::size_t p = piece_at(u);
+        const Real length = length_of(p), width = edge[p + 1] - edge[p];
+        const Real x = pi_v<Real> / 2 * ((u - t[static_cast<std::size_t>(ends[p])]) / length);
+        const Real sine = std::sin(x), cosine = std::cos(x), mu = edge[p] + width * (sine * sine);
+        return {mu > Real(1) ? Real(1) : (mu > Real(0) ? mu : Real(0)), width * (pi_v<Real> * sine * cosine) / length};
+    }
+    Real cosine(Real u) const noexcept { return at(u).mu; }
+    // dmu/dt at t (one sine).
+    Real jacobian(Real u) const noexcept {
+        if (edge.size() == 2) return pi_v<Real> / 2 * std::sin(pi_v<Real> * u);
+        const std::size_t p = piece_at(u);
+        const Real length = length_of(p), s = (u - t[static_cast<std::size_t>(ends[p])]) / length;
+        return (edge[p + 1] - edge[p]) * (pi_v<Real> / 2 * std::sin(pi_v<Real> * s)) / length;
+    }
+    // t at the cosine mu (clamped to [0, 1]).
+    Real parameter(Real mu) const noexcept {
+        mu = mu > Real(1) ? Real(1) : (mu > Real(0) ? mu : Real(0));
+        if (edge.size() == 2) return Real(2) / pi_v<Real> * std::asin(std::sqrt(mu));
+        std::size_t p = 0;
+        while (p + 2 < edge.size() && mu > edge[p + 1]) ++p;
+        const Real r = (mu - edge[p]) / (edge[p + 1] - edge[p]), r1 = r > Real(1) ? Real(1) : (r > 0 ? r : Real(0));
+        return t[static_cast<std::size_t>(ends[p])] + length_of(p) * (Real(2) / pi_v<Real> * std::asin(std::sqrt(r1)));
+    }
+
+private:
+    std::size_t piece_at(Real u) const noexcept {
+        std::size_t p = 0;
+        while (p + 2 < ends.size() && u > t[static_cast<std::size_t>(ends[p + 1])]) ++p;
+        return p;
+    }
+    Real length_of(std::size_t p) const noexcept {
+        return t[static_cast<std::size_t>(ends[p + 1])] - t[static_cast<std::size_t>(ends[p])];
+    }
+};
+
+// Cubic Hermite (Catmull-Rom) interpolation on the grid (n >= 4) of the values f_j of a function of t: on
+// [t_j, t_j+1], with s = (u - t_j) / h (h the interval's width),
 //   p(s) = h00(s) f_j + h01(s) f_j+1 + h10(s) d_j + h11(s) d_j+1,   d_j = (f_j+1 - f_j-1) / 2 (slope times step),
-// one-sided at t = 0 (d_0 = f_1 - f_0). At t = 1 (the normal) the end rule follows the parity of the azimuthal mode
-// k, since a_k(-theta) = (-1)^k a_k(theta): an even mode has slope 0 there; an odd one vanishes there, and its
-// mirror value -f_n-2 gives d_n-1 = (-f_n-2 - f_n-2) / 2 = f_n-1 - f_n-2, the one-sided difference.
+// one-sided at the ends of a piece (d_j = f_j+1 - f_j at its start, f_j+1 - f_j at its end): at t = 0, and on
+// both sides of a kink, where a centred slope would carry the other side's behaviour across it. At t = 1 (the
+// normal) the end rule follows the parity of the azimuthal mode k, since a_k(-theta) = (-1)^k a_k(theta): an even
+// mode has slope 0 there; an odd one vanishes there, and its mirror value -f_n-2 gives d_n-1 = (-f_n-2 - f_n-2) / 2
+// = f_n-1 - f_n-2, the one-sided difference.
 // The value is linear in the data: sum_a w[a] f[first + a] over four consecutive nodes, with the weights `even`
 // for even modes and `odd` for odd ones (they differ only in the last interval: `split`).
 template <class Real>
@@ -49,32 +117,42 @@ Real clamp_unit(Real x) noexcept {
 }
 
 template <class Real>
-SplineWeights<Real> spline_weights(int n, Real u) noexcept {
-    const Real x = clamp_unit(u) * Real(n - 1);
-    const int j = std::min(static_cast<int>(x), n - 2);
-    const Real s = clamp_unit(x - Real(j)), s2 = s * s, s3 = s2 * s;
+SplineWeights<Real> spline_weights(const Grid<Real>& g, Real u) noexcept {
+    u = clamp_unit(u);
+    std::size_t p = 0;
+    while (p + 2 < g.ends.size() && u > g.t[static_cast<std::size_t>(g.ends[p + 1])]) ++p;
+    const int a = g.ends[p], b = g.ends[p + 1], n = g.n();  // (a piece has at least two intervals: table_grid)
+    const Real x = (u - g.t[static_cast<std::size_t>(a)]) * g.scale[p];
+    const int j = a + std::min(static_cast<int>(x), b - a - 1);
+    const Real s = clamp_unit(x - Real(j - a)), s2 = s * s, s3 = s2 * s;
     const Real h00 = 2 * s3 - 3 * s2 + 1, h01 = 3 * s2 - 2 * s3, h10 = s3 - 2 * s2 + s, h11 = s3 - s2;
     SplineWeights<Real> w;
     Real* e = w.even;
-    if (j == 0) {  // d_0 = f_1 - f_0, d_1 = (f_2 - f_0) / 2
-        w.first = 0;
+    if (j == a) {  // d_j = f_j+1 - f_j, d_j+1 = (f_j+2 - f_j) / 2 (nodes j .. j + 2; from j - 1 where j + 3 is past n - 1)
+        w.first = std::min(j, n - 4);
+        e += j - w.first;
         e[0] = h00 - h10 - h11 / 2;
         e[1] = h01 + h10;
         e[2] = h11 / 2;
-    } else if (j + 2 < n) {  // both slopes centred
+    } else if (j + 1 < b) {  // both slopes centred
         w.first = j - 1;
         e[0] = -h10 / 2;
         e[1] = h00 - h11 / 2;
         e[2] = h01 + h10 / 2;
         e[3] = h11 / 2;
+    } else if (b < n - 1) {  // the last interval before a kink: d_j+1 = f_j+1 - f_j
+        w.first = j - 1;
+        e[0] = -h10 / 2;
+        e[1] = h00 - h11;
+        e[2] = h01 + h10 / 2 + h11;
     } else {  // the last interval: d_n-2 centred, d_n-1 by parity (0 for even modes)
         w.first = n - 4;
         e[1] = -h10 / 2;
         e[2] = h00;
         e[3] = h01 + h10 / 2;
     }
-    for (int a = 0; a < 4; ++a) w.odd[a] = e[a];
-    if (j + 2 >= n) {  // odd modes: d_n-1 = f_n-1 - f_n-2
+    for (int k = 0; k < 4; ++k) w.odd[k] = w.even[k];
+    if (j + 1 == n - 1) {  // odd modes: d_n-1 = f_n-1 - f_n-2
         w.split = true;
         w.odd[2] -= h11;
         w.odd[3] += h11;
@@ -100,13 +178,15 @@ struct HermiteSegment {
 };
 
 template <class Real, class F>
-HermiteSegment<Real> hermite_segment(int n, int j, bool even, F f) noexcept {
+HermiteSegment<Real> hermite_segment(const Grid<Real>& grid, int j, bool even, F f) noexcept {
+    const std::size_t p = grid.piece(j);
+    const int b = grid.ends[p + 1];
     HermiteSegment<Real> g;
-    g.h = Real(1) / Real(n - 1);
+    g.h = Real(1) / grid.scale[p];
     g.f0 = f(j);
     g.f1 = f(j + 1);
-    g.d0 = j == 0 ? g.f1 - g.f0 : (g.f1 - f(j - 1)) / 2;
-    g.d1 = j + 2 < n ? (f(j + 2) - g.f0) / 2 : (even ? Real(0) : g.f1 - g.f0);
+    g.d0 = j == grid.ends[p] ? g.f1 - g.f0 : (g.f1 - f(j - 1)) / 2;
+    g.d1 = j + 1 < b ? (f(j + 2) - g.f0) / 2 : (b == grid.n() - 1 && even ? Real(0) : g.f1 - g.f0);
     return g;
 }
 
@@ -266,30 +346,33 @@ AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexc
     return {phi, std::cos(phi), std::sin(phi)};  // (stopped by the bracket's width)
 }
 
-// The table's variable: t in [0, 1] with mu = sin^2(pi t / 2). Mode k of the coefficients behaves like
-// sin^k(theta) near the normal and like a power of mu near grazing: square roots in mu, smooth in t.
+// t = (2 / pi) asin(sqrt(mu)): the grid's variable without kinks, which places the kinks' nodes.
 template <class Real>
 Real cosine_parameter(Real mu) noexcept {
     return Real(2) / pi_v<Real> * std::asin(std::sqrt(clamp_unit(mu)));
 }
-template <class Real>
-Real parameter_cosine(Real t) noexcept {
-    const Real s = std::sin(pi_v<Real> / 2 * t);
-    return clamp_unit(s * s);
-}
-// dmu/dt = (pi / 2) sin(pi t).
-template <class Real>
-Real parameter_jacobian(Real t) noexcept {
-    return pi_v<Real> / 2 * std::sin(pi_v<Real> * t);
-}
 
-// The grid of n nodes: t_j = j / (n - 1). That of 2n - 1 nodes holds these and the midpoints, where the error is
+// The grid of refinement `level` with kinks at the cosines `kinks` (ascending, inside (0, 1)), at the parameters
+// cosine_parameter gives them: piece p, of length l_p in t, ruled with max(2, round(8 l_p)) 2^level intervals (9
+// nodes at level 0 without kinks). The grid of level + 1 holds these nodes and the midpoints, where the error is
 // measured.
 template <class Real>
-std::vector<Real> grid_parameters(int n) {
-    std::vector<Real> t(static_cast<std::size_t>(n));
-    for (int j = 0; j < n; ++j) t[static_cast<std::size_t>(j)] = Real(j) / Real(n - 1);
-    return t;
+Grid<Real> table_grid(const std::vector<Real>& kinks, int level) {
+    Grid<Real> g;
+    g.edge.push_back(Real(0));
+    g.edge.insert(g.edge.end(), kinks.begin(), kinks.end());
+    g.edge.push_back(Real(1));
+    g.t.push_back(Real(0));
+    g.ends.push_back(0);
+    for (std::size_t p = 0; p + 1 < g.edge.size(); ++p) {
+        const Real a = cosine_parameter(g.edge[p]), b = p + 2 == g.edge.size() ? Real(1) : cosine_parameter(g.edge[p + 1]);
+        const Real length = b - a;
+        const int count = std::max(2, static_cast<int>(std::lround(8 * length))) << level;
+        for (int i = 1; i <= count; ++i) g.t.push_back(i == count ? b : a + length * (Real(i) / Real(count)));
+        g.ends.push_back(g.n() - 1);
+        g.scale.push_back(Real(count) / length);
+    }
+    return g;
 }
 
 // The table's rough surface lobe: RoughDielectric's reflection with the facet term F D / 4 exact
@@ -398,12 +481,13 @@ struct FourierTable {
 ///
 /// Representation (docs/physics.md section 9): the subsurface reflection and the transmission as
 /// f(wi, wo) |wo.z| = sum_k a_k(mu_i, mu_o) cos(k dphi) (dphi the azimuth between -wi and wo), the a_k tabulated at
-/// n x n pairs of cosines mu = sin^2(pi t / 2), t uniform in [0, 1], and interpolated by cubic Hermite (Catmull-Rom)
+/// n x n pairs of cosines mu = sin^2(pi t / 2), t uniform in [0, 1] (cut at the critical cosines of specular faces
+/// seen from outside, with the map on each piece: detail::Grid), and interpolated by cubic Hermite (Catmull-Rom)
 /// splines in t_i and t_o; each pair keeps the modes it needs. The top's rough reflection r_12 is the
 /// RoughDielectric itself; a smooth top's mirror reflection, and between specular faces the unscattered beam and
 /// delta-M's forward peak (the layer's direct_* and forward_peak_*), are deltas.
 ///
-/// Accuracy: the grid is refined (n = 9, 17, 33, 65, 129 at most) until, at the nodes of the next finer grid, the
+/// Accuracy: the grid is refined (n = 9, 17, 33, 65, 129 at most without kinks) until, at the nodes of the next finer grid, the
 /// table's f |wi.z| |wo.z| differs from the layer's by at most `tolerance` times the lobe's largest azimuthal mean
 /// of f |wi.z| |wo.z|, at every dphi (the bound sums the |a_k| differences); each pair's series is cut where the
 /// dropped |a_k| sum to a quarter of that. error() reports the value measured (under a smooth top into a denser
@@ -493,7 +577,7 @@ public:
     std::vector<Real> grid_cosines(bool from_below = false) const {
         std::vector<Real> mu;
         if (const Side* s = from_below ? (sides_[1] ? &*sides_[1] : nullptr) : &*sides_[0])
-            for (Real t : s->t) mu.push_back(detail::parameter_cosine(t));
+            for (Real t : s->grid.t) mu.push_back(s->grid.cosine(t));
         return mu;
     }
     /// The interpolated series of f |wo.z| = sum_k a_k cos(k dphi) of the subsurface reflection (transmitted =
@@ -532,11 +616,9 @@ public:
     /// and midway between them, for the lobes the layer was solved for. error() measures the table against the
     /// layer's BRDF and BTDF; this measures the layer's BRDF and BTDF against its fluxes, which the discretization
     /// does not make agree everywhere: light leaving through a nearly specular rough face near the normal (README,
-    /// known limitations), strongly backward-scattering media; and the splines in the incidence across a critical
-    /// cosine, where the layer's fluxes have a kink (a smooth top from a denser medium, total internal reflection
-    /// at a far face): there the albedo can exceed 1 between the nodes (README, known limitations; at the nodes
-    /// alone this missed it, found by review). R and T are compared apart: the table creates or loses up to their
-    /// sum.
+    /// known limitations), strongly backward-scattering media; and splines across a kink of the layer's fluxes,
+    /// which the grid's cuts at the critical cosines now prevent (kink_cosines; at the nodes alone this missed it,
+    /// found by review). R and T are compared apart: the table creates or loses up to their sum.
     Real energy_error() const noexcept {
         return std::fmax(sides_[0]->energy_error, sides_[1] ? sides_[1]->energy_error : Real(0));
     }
@@ -742,7 +824,8 @@ private:
     };
 
     struct Side {
-        std::vector<Real> t, jacobian;                 // grid t_j = j / (n - 1); dmu/dt there
+        detail::Grid<Real> grid;                       // the nodes t_j (cut at the kinks: kink_cosines)
+        std::vector<Real> jacobian;                    // dmu/dt at the nodes
         // The cosine of the first exit node above grazing, mu_1 at t_1. Below it the value f |wo.z| is a(t_1) mu_o / mu_1:
         // f held at its value there (grazing_exit). The spline of a = f |wo.z| in t, whose slope at t = 0 is not 0
         // where a vanishes like mu_o ~ t^2, gave f ~ 1 / sqrt(mu_o): eval 834 at wo.z = 1e-12 where the layer's brdf
@@ -772,30 +855,30 @@ private:
         int channels = 1, derived = 0;
         std::vector<Real> luminance;
 
-        int n() const noexcept { return static_cast<int>(t.size()); }
+        int n() const noexcept { return grid.n(); }
         std::size_t bytes() const noexcept {
-            const std::size_t reals = t.size() + jacobian.size() + reflection.cdf.size() + transmission.cdf.size() +
+            const std::size_t reals = grid.t.size() + grid.scale.size() + jacobian.size() + reflection.cdf.size() + transmission.cdf.size() +
                                       surface_albedo.size() + beam_reflected.size() + beam_transmitted.size() +
                                       luminance.size() + (surface_lobe ? surface_lobe->l.size() : std::size_t(0));
             const std::size_t floats = reflection.coeffs.size() + transmission.coeffs.size() + reflection.mean.size() +
                                        transmission.mean.size();
             return sizeof(Real) * reals + sizeof(float) * floats +
-                   sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size());
+                   sizeof(std::uint32_t) * (reflection.offset.size() + transmission.offset.size()) + sizeof(int) * grid.ends.size();
         }
         detail::SplineWeights<Real> weights(Real mu) const noexcept {
-            return detail::spline_weights(n(), detail::cosine_parameter(mu));
+            return detail::spline_weights(grid, grid.parameter(mu));
         }
         std::size_t pair(const detail::SplineWeights<Real>& si, int a, const detail::SplineWeights<Real>& so, int b) const noexcept {
-            return static_cast<std::size_t>(si.first + a) * t.size() + static_cast<std::size_t>(so.first + b);
+            return static_cast<std::size_t>(si.first + a) * grid.t.size() + static_cast<std::size_t>(so.first + b);
         }
         // The incidence-interpolated running integral of m at exit node b.
         Real cdf(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, int b) const noexcept {
-            const Real* x = tab.cdf.data() + static_cast<std::size_t>(b) * t.size() + static_cast<std::size_t>(si.first);
+            const Real* x = tab.cdf.data() + static_cast<std::size_t>(b) * grid.t.size() + static_cast<std::size_t>(si.first);
             return si.even[0] * x[0] + si.even[1] * x[1] + si.even[2] * x[2] + si.even[3] * x[3];
         }
         // The incidence-interpolated m = a_0 dmu/dt at exit node b.
         Real marginal(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, int b) const noexcept {
-            const float* x = tab.mean.data() + static_cast<std::size_t>(b) * t.size() + static_cast<std::size_t>(si.first);
+            const float* x = tab.mean.data() + static_cast<std::size_t>(b) * grid.t.size() + static_cast<std::size_t>(si.first);
             const Real c = si.even[0] * Real(x[0]) + si.even[1] * Real(x[1]) + si.even[2] * Real(x[2]) + si.even[3] * Real(x[3]);
             return c * jacobian[static_cast<std::size_t>(b)];
         }
@@ -895,8 +978,8 @@ private:
                        Vec3<Real> wo, bool density) const noexcept {
             if (tab.empty()) return {};
             const Real mu_o = detail::clamp_unit(std::fabs(wo.z));
-            const Real t_o = detail::cosine_parameter(mu_o);
-            const detail::SplineWeights<Real> so = detail::spline_weights(n(), t_o);
+            const Real t_o = grid.parameter(mu_o);
+            const detail::SplineWeights<Real> so = detail::spline_weights(grid, t_o);
             Real c[kMaxOrder];
             const int order = interpolate(tab, si, so, c);
             const Real x = cos_dphi(wi, wo), in = entering(detail::clamp_unit(wi.z));
@@ -912,7 +995,7 @@ private:
         // the series at t_1 times mu_o / mu_1 (see first_cosine). (Without the entering factor.)
         Real grazing_exit(const detail::FourierTable<Real>& tab, const detail::SplineWeights<Real>& si, Real x,
                           Real mu_o) const noexcept {
-            const detail::SplineWeights<Real> s1 = detail::spline_weights(n(), t[1]);
+            const detail::SplineWeights<Real> s1 = detail::spline_weights(grid, grid.t[1]);
             Real c[kMaxOrder];
             const Real g = detail::cosine_series(c, interpolate(tab, si, s1, c), x);
             return g > 0 ? g * (mu_o / first_cosine) : Real(0);
@@ -924,7 +1007,7 @@ private:
                              const detail::SplineWeights<Real>& so, Real t_o, Real mean, Real value) const noexcept {
             Real m = 0;
             for (int b = 0; b < 4; ++b) m += so.odd[b] * marginal(tab, si, so.first + b);  // m is odd at t = 1
-            return density_ratio(m, detail::parameter_jacobian(t_o), mean, value);
+            return density_ratio(m, grid.jacobian(t_o), mean, value);
         }
         // The same from m and dmu/dt at t_o.
         static Real density_ratio(Real m, Real jac, Real mean, Real value) noexcept {
@@ -1070,17 +1153,17 @@ private:
                 hi = below ? hi : mid;
             }
             const detail::HermiteSegment<Real> seg =
-                detail::hermite_segment<Real>(nn, lo, false, [&](int b) { return marginal(tab, si, b); });
+                detail::hermite_segment<Real>(grid, lo, false, [&](int b) { return marginal(tab, si, b); });
             const Real x = detail::invert_segment(seg, target - cdf(tab, si, lo), total);
-            const Real t_o = detail::clamp_unit(t[static_cast<std::size_t>(lo)] + x * seg.h);
-            // mu_o = sin^2(pi t / 2) as parameter_cosine gives it, and dmu/dt = pi sin cos from the same sine
-            const Real sine = std::sin(detail::pi_v<Real> / 2 * t_o), cosine = std::cos(detail::pi_v<Real> / 2 * t_o);
-            const Real mu_o = detail::clamp_unit(sine * sine);
+            const Real t_o = detail::clamp_unit(grid.t[static_cast<std::size_t>(lo)] + x * seg.h);
+            // mu_o and dmu/dt from the same sine (Grid::at)
+            const typename detail::Grid<Real>::Point at_o = grid.at(t_o);
+            const Real mu_o = at_o.mu;
             // A subnormal cosine (t_o below ~1e-154: u1 below ~1e-300) has too few digits for pdf() to find t_o
             // again from it (found by fuzz_renderer: the two densities 0.17% apart); such a grazing sample fails.
             if (!(mu_o >= std::numeric_limits<Real>::min())) return {};
             // The Fourier series at (mu_i, mu_o).
-            const detail::SplineWeights<Real> so = detail::spline_weights(nn, t_o);
+            const detail::SplineWeights<Real> so = detail::spline_weights(grid, t_o);
             Real c[kMaxOrder];
             const int order = interpolate(tab, si, so, c);
             if (!(order > 0 && c[0] > 0)) return {};
@@ -1099,7 +1182,7 @@ private:
             const Real g = detail::cosine_series(c, order, cos_dphi_o);
             out.at.value = g > 0 ? g * in : Real(0);
             // (m at t_o is the segment's value at x: the spline of sampled_density, on the interval it was inverted on)
-            out.at.density = density_ratio(seg.value(x), detail::pi_v<Real> * sine * cosine, c[0], out.at.value);
+            out.at.density = density_ratio(seg.value(x), at_o.jacobian, c[0], out.at.value);
             if (mu_o < first_cosine) {  // the value as lobe() and lobe_channels() give it there (first_cosine)
                 out.at.value = grazing_exit(tab, si, cos_dphi_o, mu_o) * in;
                 if (channel_values && channels > 1) lobe_channels(tab, wi, out.wo, channel_values);
@@ -1209,6 +1292,44 @@ private:
     template <class LayerReal>
     static Side tabulate(const std::vector<const LayeredSurface<LayerReal>*>& layers, const std::vector<Real>& luminance,
                          Real tolerance);
+
+    // The kinks of the lobes in a cosine outside (ascending; one within 1/64 in t of another, of 0 or of 1 dropped):
+    // where light outside, of index n_o, at cosine mu meets a face into a medium of index n < n_o at its critical
+    // angle, n_o sin(theta) = n, through faces that do not spread it (specular): mu_c = sqrt(1 - (n / n_o)^2).
+    // There the layer's lobes and fluxes change abruptly (total internal reflection begins), and a spline whose
+    // slopes reach across carried light over the kink: a lossless slab of index 1 between glass had an albedo of
+    // 1.26 at mu 0.745 (docs/physics.md section 9). Above (the incidence and the reflected exits): n_o the medium
+    // above, through a specular top; below (the transmitted exits): the medium below, through a specular bottom.
+    // (A rough face spreads the directions, and the kink with them.)
+    template <class LayerReal>
+    static std::vector<Real> kink_cosines(const LayeredSurface<LayerReal>& layer) {
+        std::vector<Real> mu;
+        const auto add = [&mu](LayerReal n_o, LayerReal n) {
+            if (!(n < n_o)) return;
+            const LayerReal r = n / n_o;
+            mu.push_back(static_cast<Real>(std::sqrt((1 - r) * (1 + r))));
+        };
+        const Boundary<LayerReal>& top = layer.top();
+        const Boundary<LayerReal>& bottom = layer.bottom();
+        const bool top_specular = !top.rough() && !top.lambertian(), bottom_specular = !bottom.rough() && !bottom.lambertian();
+        if (top_specular) {
+            for (const LayerReal n : layer.slab_indices()) add(top.eta_above(), n);
+            if (bottom_specular) add(top.eta_above(), bottom.eta_below());
+        }
+        if (bottom_specular && includes(layer.outputs(), LayerOutput::transmission)) {
+            for (const LayerReal n : layer.slab_indices()) add(bottom.eta_below(), n);
+            if (top_specular) add(bottom.eta_below(), top.eta_above());
+        }
+        std::sort(mu.begin(), mu.end());
+        std::vector<Real> kinks;
+        for (const Real m : mu) {
+            const Real x = detail::cosine_parameter(m);
+            if (x >= Real(1) / 64 && x <= 1 - Real(1) / 64 &&
+                (kinks.empty() || x - detail::cosine_parameter(kinks.back()) >= Real(1) / 64))
+                kinks.push_back(m);
+        }
+        return kinks;
+    }
     template <class LayerReal>
     static Real energy_mismatch(const Side& s, const std::vector<const LayeredSurface<LayerReal>*>& layers,
                                 const std::vector<Real>& luminance);
@@ -1271,19 +1392,20 @@ struct DenseLobe {
 // The incidence cosine at which the layer is evaluated for node j of the grid t: the node's, and at t = 0 a tenth
 // of the next node's (the BRDF does not vanish at grazing incidence, although no light arrives there).
 template <class L, class Real>
-L node_incidence(const std::vector<Real>& t, std::size_t j) {
-    return j == 0 ? static_cast<L>(parameter_cosine(t[1])) / 10 : static_cast<L>(parameter_cosine(t[j]));
+L node_incidence(const Grid<Real>& g, std::size_t j) {
+    return j == 0 ? static_cast<L>(g.cosine(g.t[1])) / 10 : static_cast<L>(g.cosine(g.t[j]));
 }
 
 // The coefficients of both lobes of `layer` on the grid t (incidences node_incidence), each row divided by
 // `entry` of its incidence cosine where that is given (TabulatedBSDF::Side::entry).
 template <class Real, class L>
-void layer_lobes(const LayeredSurface<L>& layer, const std::vector<Real>& t, const SmoothDielectric<L>* entry,
+void layer_lobes(const LayeredSurface<L>& layer, const Grid<Real>& grid, const SmoothDielectric<L>* entry,
                  DenseLobe<L> out[2]) {
+    const std::vector<Real>& t = grid.t;
     std::vector<L> mu_o(t.size()), mu_i(t.size());
     for (std::size_t j = 0; j < t.size(); ++j) {
-        mu_o[j] = static_cast<L>(parameter_cosine(t[j]));
-        mu_i[j] = node_incidence<L>(t, j);
+        mu_o[j] = static_cast<L>(grid.cosine(t[j]));
+        mu_i[j] = node_incidence<L>(grid, j);
     }
     const LayerOutput which[2] = {LayerOutput::subsurface_reflection, LayerOutput::transmission};
     for (int w = 0; w < 2; ++w) {
@@ -1299,16 +1421,16 @@ void layer_lobes(const LayeredSurface<L>& layer, const std::vector<Real>& t, con
 // The largest mu_i sum_k |a_k(table) - a_k(fine)| over the fine grid's nodes (2n - 1 of them, every other one
 // the table's): the worst error of f |wi.z| |wo.z| at any dphi.
 template <class Real, class L>
-L table_error(const std::vector<Real>& t, const DenseLobe<L>& fine, const std::vector<int>& orders) {
-    const int n = static_cast<int>(t.size()), k_max = fine.modes;
+L table_error(const Grid<Real>& grid, const Grid<Real>& fine_grid, const DenseLobe<L>& fine, const std::vector<int>& orders) {
+    const int n = grid.n(), k_max = fine.modes;
     L worst = 0;
     std::vector<L> c(static_cast<std::size_t>(k_max));
     for (int i = 0; i < fine.n; ++i) {
-        const Real t_i = Real(i) / Real(fine.n - 1);
-        const L mu_i = static_cast<L>(parameter_cosine(t_i));
-        const SplineWeights<Real> si = spline_weights(n, t_i);
+        const Real t_i = fine_grid.t[static_cast<std::size_t>(i)];
+        const L mu_i = static_cast<L>(fine_grid.cosine(t_i));
+        const SplineWeights<Real> si = spline_weights(grid, t_i);
         for (int o = 0; o < fine.n; ++o) {
-            const SplineWeights<Real> so = spline_weights(n, Real(o) / Real(fine.n - 1));
+            const SplineWeights<Real> so = spline_weights(grid, fine_grid.t[static_cast<std::size_t>(o)]);
             std::fill(c.begin(), c.end(), L(0));
             for (int a = 0; a < 4; ++a)
                 for (int b = 0; b < 4; ++b) {
@@ -1348,10 +1470,10 @@ std::vector<int> truncated_orders(const DenseLobe<L>& fine, L budget, int cap) {
 // The packed table of the coarse grid's pairs for the given series (every other node of each `fine` lobe), each
 // pair with the order `orders` gives it, and each row's running integral of m = a_0 dmu/dt of series 0.
 template <class Real, class L>
-FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real>& jacobian,
+FourierTable<Real> pack_table(const Grid<Real>& grid, const std::vector<Real>& jacobian,
                               const std::vector<const DenseLobe<L>*>& series, const std::vector<int>& orders) {
     FourierTable<Real> tab;
-    const int n = static_cast<int>(t.size());
+    const int n = grid.n();
     const std::uint32_t count = static_cast<std::uint32_t>(series.size());
     tab.series = static_cast<int>(count);
     tab.offset.assign(orders.size() + 1, 0);
@@ -1374,7 +1496,7 @@ FourierTable<Real> pack_table(const std::vector<Real>& t, const std::vector<Real
         auto m = [&](int o) { return Real(tab.mean[static_cast<std::size_t>(o) * nn + i]) * jacobian[static_cast<std::size_t>(o)]; };
         for (int o = 0; o + 1 < n; ++o)
             tab.cdf[static_cast<std::size_t>(o + 1) * nn + i] =
-                tab.cdf[static_cast<std::size_t>(o) * nn + i] + hermite_segment<Real>(n, o, false, m).integral(Real(1));
+                tab.cdf[static_cast<std::size_t>(o) * nn + i] + hermite_segment<Real>(grid, o, false, m).integral(Real(1));
     }
     return tab;
 }
@@ -1425,16 +1547,20 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
     // shares would be singular there; found by review: error() 0.22 -> 0.51 for a 1.5 | 1 top.)
     if (!layer.top().rough() && !layer.top().lambertian() && layer.top().eta_above() < layer.top().eta_below())
         s.entry.emplace(s.eta_above, static_cast<Real>(layer.top().eta_below()));
-    // Refine until every channel's table of n nodes is within tolerance at the nodes of 2n - 1 (129 nodes at most).
-    // fine[w][c]: lobe w (reflection, transmission) of channel c on the finer grid; the luminance last.
+    // Refine until every channel's table of n nodes is within tolerance at the nodes of 2n - 1 (level 4 at most: 129
+    // nodes without kinks). fine[w][c]: lobe w (reflection, transmission) of channel c on the finer grid; the
+    // luminance last.
     std::vector<detail::DenseLobe<L>> fine[2];
     std::vector<int> orders[2];
-    for (int n = 9;; n = 2 * n - 1) {
-        s.t = detail::grid_parameters<Real>(n);
+    const std::vector<Real> kinks = kink_cosines(layer);
+    for (int level = 0;; ++level) {
+        s.grid = detail::table_grid(kinks, level);
+        const detail::Grid<Real> finer = detail::table_grid(kinks, level + 1);
+        const int n = s.n();
         for (int w = 0; w < 2; ++w) fine[w].assign(static_cast<std::size_t>(channels), {});
         for (int c = 0; c < channels; ++c) {
             detail::DenseLobe<L> pair[2];
-            detail::layer_lobes(*layers[static_cast<std::size_t>(c)], detail::grid_parameters<Real>(2 * n - 1),
+            detail::layer_lobes(*layers[static_cast<std::size_t>(c)], finer,
                                 s.entry ? &layer.top().smooth_interface() : nullptr, pair);
             for (int w = 0; w < 2; ++w) fine[w][static_cast<std::size_t>(c)] = std::move(pair[w]);
         }
@@ -1446,33 +1572,35 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
                 L scale = 0;  // the lobe's largest azimuthal mean of f |wi.z| |wo.z|
                 for (int i = 0; i < f.n; ++i)
                     for (int o = 0; o < f.n && f.modes > 0; ++o)
-                        scale = std::fmax(scale, std::fabs(f.pair(i, o)[0]) * detail::parameter_cosine(L(i) / L(f.n - 1)));
+                        scale = std::fmax(scale, std::fabs(f.pair(i, o)[0]) *
+                                                     static_cast<L>(finer.cosine(finer.t[static_cast<std::size_t>(i)])));
                 const std::vector<int> own = detail::truncated_orders(f, L(tolerance) * scale / 4, max_order);
-                if (scale > 0) err = std::fmax(err, detail::table_error(s.t, f, own) / scale);
+                if (scale > 0) err = std::fmax(err, detail::table_error(s.grid, finer, f, own) / scale);
                 for (std::size_t p = 0; p < own.size(); ++p) orders[w][p] = std::max(orders[w][p], own[p]);
             }
         }
         s.error = static_cast<Real>(err);
-        if (err <= L(tolerance) || n >= 129) break;
+        if (err <= L(tolerance) || level >= 4) break;
     }
-    s.jacobian.resize(s.t.size());
-    for (std::size_t j = 0; j < s.t.size(); ++j) s.jacobian[j] = detail::parameter_jacobian(s.t[j]);
-    s.first_cosine = detail::parameter_cosine(s.t[1]);
+    const std::vector<Real>& nodes_t = s.grid.t;
+    s.jacobian.resize(nodes_t.size());
+    for (std::size_t j = 0; j < nodes_t.size(); ++j) s.jacobian[j] = s.grid.jacobian(nodes_t[j]);
+    s.first_cosine = s.grid.cosine(nodes_t[1]);
     for (int w = 0; w < 2; ++w) {
         // Stored: the one channel; or the luminance, then every channel but the derived one.
         std::vector<const detail::DenseLobe<L>*> series;
         if (channels > 1) series.push_back(&fine[w].back());
         for (int c = 0; c < channels; ++c)
             if (channels == 1 || c != s.derived) series.push_back(&fine[w][static_cast<std::size_t>(c)]);
-        (w == 0 ? s.reflection : s.transmission) = detail::pack_table(s.t, s.jacobian, series, orders[w]);
+        (w == 0 ? s.reflection : s.transmission) = detail::pack_table(s.grid, s.jacobian, series, orders[w]);
     }
-    const std::size_t nodes = s.t.size();
+    const std::size_t nodes = nodes_t.size();
     if (s.surface) {  // for choosing lobes, and albedo(); at node 0 the value at node_incidence, as the lobes have it
         // (it held node 1's, and albedo() missed the top's growing reflectance towards grazing: 0.554 for 0.593 at
         // mu 0.001 under a rough 0.2 top; found by review)
         s.surface_albedo.resize(nodes);
         for (std::size_t j = 0; j < nodes; ++j)
-            s.surface_albedo[j] = static_cast<Real>(layer.reflectance(detail::node_incidence<L>(s.t, j)).surface);
+            s.surface_albedo[j] = static_cast<Real>(layer.reflectance(detail::node_incidence<L>(s.grid, j)).surface);
     }
     bool beams = false;
     for (const LayeredSurface<L>* l : layers)
@@ -1491,7 +1619,7 @@ typename TabulatedBSDF<Real>::Side TabulatedBSDF<Real>::tabulate(const std::vect
                 // At mu = 0, where no light arrives and the layer answers 0, a tenth of the next node's cosine, as the
                 // lobes are evaluated: a 0 there made the spline overshoot towards the next node (the albedo of an
                 // empty index-matched layer 1.074 at mu = 0.067, a glass slab's 1.036 at 0.006; renderer sweep).
-                const L mu = detail::node_incidence<L>(s.t, j);
+                const L mu = detail::node_incidence<L>(s.grid, j);
                 const L in = s.entry ? l.top().smooth_interface().transmittance(mu) : L(1);
                 const Real r = in > 0 ? static_cast<Real>((l.direct_reflectance(mu) + l.forward_peak_reflectance(mu)) / in) : Real(0);
                 const Real t = in > 0 ? static_cast<Real>((l.direct_transmittance(mu) + l.forward_peak_transmittance(mu)) / in) : Real(0);
@@ -1520,8 +1648,9 @@ Real TabulatedBSDF<Real>::energy_mismatch(const Side& s, const std::vector<const
     const bool surface = includes(outputs, LayerOutput::surface_reflection);
     const bool transmission = includes(outputs, LayerOutput::transmission);
     Real worst = 0;
-    for (std::size_t j = 1; j < 2 * s.t.size() - 1; ++j) {  // (the nodes, and midway between them)
-        const Real mu = detail::parameter_cosine(j % 2 == 0 ? s.t[j / 2] : (s.t[j / 2] + s.t[j / 2 + 1]) / 2);
+    const std::vector<Real>& nodes_t = s.grid.t;
+    for (std::size_t j = 1; j < 2 * nodes_t.size() - 1; ++j) {  // (the nodes, and midway between them)
+        const Real mu = s.grid.cosine(j % 2 == 0 ? nodes_t[j / 2] : (nodes_t[j / 2] + nodes_t[j / 2 + 1]) / 2);
         const Albedos a = s.albedos(s.weights(mu), mu);
         LayerReal r = 0, t = 0;
         for (std::size_t c = 0; c < layers.size(); ++c) {
