@@ -331,6 +331,22 @@ TEST_CASE("TabulatedBSDF across a critical cosine: a node at the kink, the albed
         std::mt19937_64 rng(11 + c);
         check_chi_square(table, direction(cases[c].kinks.back() + 0.05, 1.0), rng, cases[c].kinks);
     }
+    // The sampled density over the value's share (pdf (R + T) / (f |wo.z|), 1 where the marginal's spline follows
+    // a_0 dmu/dt) just above the first case's kink, lit at mu 0.9: with the marginal's one-sided slope at the cut
+    // 4.5 at 1e-5 above it and 1.33 at 1e-4 (found by review); with its slope a_0 J' there 1.21 and 1.08.
+    const TabulatedBSDF<double> table(cases[0].layer, 1e-2);
+    const Vec3<double> wi = direction(0.9, 0.0);
+    const auto al = table.albedo(0.9);
+    for (const double d : {1e-5, 1e-4}) {
+        const double mu_o = cases[0].kinks[0] + d;
+        for (const double z : {mu_o, -mu_o}) {
+            Vec3<double> wo = direction(mu_o, 3.14159);
+            wo.z = z;
+            const double ratio = table.pdf(wi, wo) * (al.reflectance + al.transmittance) / (table.eval(wi, wo) * mu_o);
+            CAPTURE(d);
+            CHECK(ratio <= (d < 5e-5 ? 1.3 : 1.1));
+        }
+    }
 }
 
 TEST_CASE("TabulatedBSDF across critical cosines: kinks close together, and every channel's (found by review)") {
