@@ -2179,7 +2179,7 @@ private:
             up.assign(count, Real(0));
             down.assign(count, Real(0));
             for (std::size_t j = 0; j < count; ++j) {
-                if (!(y[j] > 0) || !(f.x[j] > 0)) continue;
+                if (!(y[j] > 0)) continue;  // (a slab the beam does not reach still emits its diffuse light)
                 const Real r = exits[2 * j * kk + k], t = exits[(2 * j + 1) * kk + k];
                 Real eu = f.flux_down[j] * r + f.flux_up[j] * t, ed = f.flux_down[j] * t + f.flux_up[j] * r;
                 const Real* d = f.d.data() + (k * count + j) * m;
