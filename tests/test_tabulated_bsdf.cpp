@@ -362,13 +362,13 @@ TEST_CASE("TabulatedBSDF across critical cosines: kinks close together, and ever
         for (const double x : t.grid_cosines()) nearest = std::fmin(nearest, std::fabs(x - mu));
         return nearest <= 1e-12;
     };
-    LayerOptions o;
-    o.ordinates = 16;
+    LayerOptions o;  // (8 ordinates and tolerance 3e-2: 36 s under the sanitizers at 16 and 1e-2)
+    o.ordinates = 8;
     {
         const std::vector<Slab<double>> slabs{Slab<double>(1.0, 0.5, 0.5), Slab<double>(1.0, 0.5, 0.5)};
         const auto layer = solve_stack<double>(SmoothDielectric<double>(1.5, 1.34), slabs, {B(SmoothDielectric<double>(1.34, 1.33))},
                                                SmoothDielectric<double>(1.33, 1.0), o);
-        const TabulatedBSDF<double> table(layer, 1e-2);
+        const TabulatedBSDF<double> table(layer, 3e-2);
         CHECK(has_node(table, critical(1.34, 1.5)));
         CHECK(has_node(table, critical(1.33, 1.5)));
     }
@@ -378,7 +378,7 @@ TEST_CASE("TabulatedBSDF across critical cosines: kinks close together, and ever
                                    SmoothDielectric<double>(n, 1.5), o);
     };
     const std::vector<LayeredSurface<double>> layers{channel(1.0), channel(1.2)};
-    const TabulatedBSDF<double> both(layers, 1e-2, {0.5, 0.5}), alone(layers[1], 1e-2);
+    const TabulatedBSDF<double> both(layers, 3e-2, {0.5, 0.5}), alone(layers[1], 3e-2);
     CHECK(has_node(both, critical(1.0, 1.5)));
     CHECK(has_node(both, critical(1.2, 1.5)));
     const auto lobes = [](const TabulatedBSDF<double>& t, double mu_i, int c) {  // 2 pi int a_0 dmu_o, both lobes
