@@ -472,6 +472,7 @@ TEST_CASE("TabulatedBSDF: smooth faces keep the mirror reflection and the direct
     const LayeredSurface<double> layer = glass_slab();
     const TabulatedBSDF<double> table(layer, 1e-3);
     const Quadrature<double> g = gauss_legendre_half<double>(64);
+    LayeredSurface<double>::Workspace ws;  // (it keeps the incidence's field: 20 times faster)
     for (double mu : {1.0, 0.5, 0.1}) {
         const Vec3<double> wi = direction(mu, 0.0);
         double r = fresnel_dielectric(mu, 1.5) + layer.direct_reflectance(mu) + layer.forward_peak_reflectance(mu);
@@ -480,9 +481,9 @@ TEST_CASE("TabulatedBSDF: smooth faces keep the mirror reflection and the direct
             for (std::size_t b = 0; b < g.size(); ++b) {
                 Vec3<double> wo = direction(g.nodes[a], pi * g.nodes[b]);
                 const double w = 2 * pi * g.weights[a] * g.weights[b] * g.nodes[a];
-                r += w * layer.subsurface_brdf(wi, wo);
+                r += w * layer.subsurface_brdf(wi, wo, ws);
                 wo.z = -wo.z;
-                t += w * layer.btdf(wi, wo);
+                t += w * layer.btdf(wi, wo, ws);
             }
         const auto a = table.albedo(mu);
         MESSAGE("glass slab mu " << mu << ": table R " << a.reflectance << " T " << a.transmittance

@@ -1135,12 +1135,15 @@ struct BeamField {
 template <class Real = double>
 class LayeredSurface {
 public:
-    /// Scratch memory for evaluation (sized on first use).
+    /// Scratch memory for evaluation (sized on first use). Between specular faces it also keeps the last incidence's
+    /// field and the last exit cosine's response, so that calls at one incidence (or one exit) reuse them.
     struct Workspace {
         std::vector<Real> in, out, c, field, shape, row, row_all, spread, first;
-        // between specular faces (the beam as a source): the field of an incidence computed on the fly, the slab's
-        // response to a beam at the exit cosine, scratch
+        // between specular faces (the beam as a source): the field of an incidence computed on the fly (and the
+        // serial number of the beam source it belongs to: 0 while none), the slab's response to a beam at the exit
+        // cosine, scratch
         detail::BeamField<Real> beam;
+        std::uint64_t beam_owner = 0;
         std::vector<detail::BeamResponse<Real>> beam_y[2];  // per side (reflection, transmission), per slab
         std::vector<Real> beam_y_leave[2];  // per side: leave()'s weights of up_j and down_j (P, Q of bounce) at the exit
         struct {  // what beam_y[side] and beam_y_leave[side] hold: the layer's beam source (its serial number), the exit cosine, the modes
@@ -2039,7 +2042,11 @@ private:
     const detail::BeamField<Real>& beam_field(Real mu_i, int modes, Workspace& ws) const {
         for (std::size_t j = 0; j < cached_beam_.size(); ++j)
             if (cached_beam_[j].mu_i == mu_i && cached_beam_[j].modes >= modes) return cached_beam_[j];
+        // (the Workspace's field, if it is this beam source's at this incidence: exits at one incidence share it)
+        if (ws.beam_owner == beam_->serial && ws.beam.mu_i == mu_i && ws.beam.modes >= modes) return ws.beam;
+        ws.beam_owner = 0;
         compute_beam_field(mu_i, modes, ws.beam, ws);
+        ws.beam_owner = beam_->serial;
         return ws.beam;
     }
     void compute_beam_field(Real mu_i, int modes, detail::BeamField<Real>& f, Workspace& ws) const {
