@@ -48,6 +48,16 @@ struct Grid {
         while (p + 2 < ends.size() && j >= ends[p + 1]) ++p;
         return p;
     }
+    // The piece holding the parameter u (the first of two at a cut).
+    std::size_t piece_at(Real u) const noexcept {
+        std::size_t p = 0;
+        while (p + 2 < ends.size() && u > t[static_cast<std::size_t>(ends[p + 1])]) ++p;
+        return p;
+    }
+    // The length in t of piece p.
+    Real length_of(std::size_t p) const noexcept {
+        return t[static_cast<std::size_t>(ends[p + 1])] - t[static_cast<std::size_t>(ends[p])];
+    }
     // mu at t, and dmu/dt, from the same sine. (One piece: the map without kinks, in as few operations as before
     // kinks were cut: eval, pdf and sample call these.)
     struct Point {
@@ -81,16 +91,6 @@ struct Grid {
         const Real r = (mu - edge[p]) / (edge[p + 1] - edge[p]), r1 = r > Real(1) ? Real(1) : (r > 0 ? r : Real(0));
         return t[static_cast<std::size_t>(ends[p])] + length_of(p) * (Real(2) / pi_v<Real> * std::asin(std::sqrt(r1)));
     }
-
-private:
-    std::size_t piece_at(Real u) const noexcept {
-        std::size_t p = 0;
-        while (p + 2 < ends.size() && u > t[static_cast<std::size_t>(ends[p + 1])]) ++p;
-        return p;
-    }
-    Real length_of(std::size_t p) const noexcept {
-        return t[static_cast<std::size_t>(ends[p + 1])] - t[static_cast<std::size_t>(ends[p])];
-    }
 };
 
 // Cubic Hermite (Catmull-Rom) interpolation on the grid (n >= 4) of the values f_j of a function of t: on
@@ -121,8 +121,7 @@ Real clamp_unit(Real x) noexcept {
 template <class Real>
 SplineWeights<Real> spline_weights(const Grid<Real>& g, Real u) noexcept {
     u = clamp_unit(u);
-    std::size_t p = 0;
-    while (p + 2 < g.ends.size() && u > g.t[static_cast<std::size_t>(g.ends[p + 1])]) ++p;
+    const std::size_t p = g.piece_at(u);
     const int a = g.ends[p], b = g.ends[p + 1], n = g.n();  // (a piece has at least two intervals: table_grid)
     const Real x = (u - g.t[static_cast<std::size_t>(a)]) * g.scale[p];
     const int j = a + std::min(static_cast<int>(x), b - a - 1);
@@ -195,6 +194,17 @@ HermiteSegment<Real> hermite_segment(const Grid<Real>& grid, int j, bool even, F
     return g;
 }
 
+// Where interval j lies against the cuts: its piece, and whether it starts or ends at a cut (not at t = 0 or 1).
+struct CutContact {
+    std::size_t piece = 0;
+    bool starts = false, ends = false;
+};
+template <class Real>
+CutContact cut_contact(const Grid<Real>& grid, int j) noexcept {
+    if (grid.ends.size() == 2) return {};  // (no cuts)
+    const std::size_t p = grid.piece(j);
+    return {p, p > 0 && j == grid.ends[p], p + 2 < grid.ends.size() && j + 1 == grid.ends[p + 1]};
+}
 // The segment of the marginal m = a_0 dmu/dt (m: its values at the nodes, a0: a_0 there). At a cut dmu/dt
 // vanishes, and m starts like a_0 (t_c) J'(t_c) (t - t_c) + O((t - t_c)^2): that slope, times the step, where a
 // piece begins or ends at a cut (J' = +-(mu_b - mu_a) pi^2 / (2 l^2) on a piece of length l). The one-sided
@@ -203,20 +213,19 @@ HermiteSegment<Real> hermite_segment(const Grid<Real>& grid, int j, bool even, F
 template <class Real, class M, class A>
 HermiteSegment<Real> marginal_segment(const Grid<Real>& grid, int j, M m, A a0) noexcept {
     HermiteSegment<Real> g = hermite_segment<Real>(grid, j, false, m);
-    const std::size_t p = grid.piece(j);
-    if (p + 2 >= grid.ends.size() && p == 0) return g;  // (no cuts)
-    const Real w = grid.edge[p + 1] - grid.edge[p], l = Real(1) / grid.scale[p] * Real(grid.ends[p + 1] - grid.ends[p]);
-    const Real k = w * pi_v<Real> * pi_v<Real> / (2 * l * l) / grid.scale[p];  // J' times the step
-    if (p > 0 && j == grid.ends[p]) g.d0 = a0(j) * k;
-    if (p + 2 < grid.ends.size() && j + 1 == grid.ends[p + 1]) g.d1 = -a0(j + 1) * k;
+    const CutContact c = cut_contact(grid, j);
+    if (!c.starts && !c.ends) return g;
+    const Real w = grid.edge[c.piece + 1] - grid.edge[c.piece], l = grid.length_of(c.piece);
+    const Real k = w * pi_v<Real> * pi_v<Real> / (2 * l * l) / grid.scale[c.piece];  // J' times the step
+    if (c.starts) g.d0 = a0(j) * k;
+    if (c.ends) g.d1 = -a0(j + 1) * k;
     return g;
 }
 // Whether interval j touches a cut (marginal_segment differs from hermite_segment there).
 template <class Real>
 bool touches_cut(const Grid<Real>& grid, int j) noexcept {
-    if (grid.ends.size() == 2) return false;
-    const std::size_t p = grid.piece(j);
-    return (p > 0 && j == grid.ends[p]) || (p + 2 < grid.ends.size() && j + 1 == grid.ends[p + 1]);
+    const CutContact c = cut_contact(grid, j);
+    return c.starts || c.ends;
 }
 
 // The t in [0, 1] where the segment's integral reaches r (0 <= r <= its integral up to rounding): Newton's method
