@@ -1135,10 +1135,19 @@ struct BeamField {
 template <class Real = double>
 class LayeredSurface {
 public:
-    /// Scratch memory for evaluation (sized on first use). Between specular faces it also keeps the last incidence's
-    /// field and the last exit cosine's response, so that calls at one incidence (or one exit) reuse them.
+    /// Scratch memory for evaluation (sized on first use). It also keeps what the last incidence computed on the fly
+    /// let into the layer (the entry; between specular faces its field) and, between specular faces, the last exit
+    /// cosine's response, so that calls at one incidence (or one exit) reuse them.
     struct Workspace {
         std::vector<Real> in, out, c, field, shape, row, row_all, spread, first;
+        // the last entry (ws.c) entry() computed, and for which layer (its serial number: 0 while none), incidence
+        // and number of modes (a prefix of it serves fewer)
+        std::vector<Real> entry_kept;
+        struct {
+            std::uint64_t owner = 0;
+            Real mu_i = -1;
+            int modes = 0;
+        } entry_key;
         // between specular faces (the beam as a source): the field of an incidence computed on the fly (and the
         // serial number of the beam source it belongs to: 0 while none), the slab's response to a beam at the exit
         // cosine, scratch
@@ -1479,9 +1488,21 @@ private:
     // transmittance T_12(mu_i). Specular top (or a lobe that falls between the ordinates): the refracted
     // beam at the Snell cosine, spread over the nearest ordinates inside the top's escape cone with
     // Lagrange weights (they sum to 1, so the flux is conserved; exact when the Snell cosine is an ordinate).
-    // (The first `modes` modes; all by default.)
+    // (The first `modes` modes; all by default.) The Workspace keeps the last one computed: calls at one incidence
+    // (exits, the BRDF and the BTDF) share it.
     void entry(Real mu_i, Workspace& ws, int modes = -1) const {
         if (modes < 0) modes = modes_;
+        const auto& key = ws.entry_key;
+        if (key.owner == serial_ && key.mu_i == mu_i && key.modes >= modes) {
+            ws.c.assign(ws.entry_kept.begin(), ws.entry_kept.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(modes) * q_.size()));
+            return;
+        }
+        compute_entry(mu_i, ws, modes);
+        ws.entry_key.owner = 0;
+        ws.entry_kept = ws.c;
+        ws.entry_key = {serial_, mu_i, modes};
+    }
+    void compute_entry(Real mu_i, Workspace& ws, int modes) const {
         const Face top = top_face();
         const std::size_t m = q_.size(), kk = static_cast<std::size_t>(modes);
         ws.c.assign(kk * m, Real(0));
@@ -2526,6 +2547,9 @@ private:
     }
 
     Boundary<Real> top_, bottom_;
+    // A number no other layer of the program has had (copies share it: they are the same layer), which keys what a
+    // Workspace keeps for this layer (the last entry: entry()).
+    std::uint64_t serial_ = detail::next_beam_serial();
     std::vector<Real> indices_;  // slab_indices()
     detail::SharedOperators<Real> top_ops_, bottom_ops_;  // null when nothing was solved; shared with PreparedBoundary
     bool bottom_turned_top_ = false;                       // bottom_ops_ is top_ops_ flipped (built with it)
