@@ -1076,8 +1076,9 @@ StackMode<Real> stack_mode(const PreparedStack<Real>& stack, const InterfaceOper
 
 namespace detail {
 
-// Serial numbers for BeamSolution: a Workspace keys the slab responses it caches by them (keyed by the address, a
-// layer solved where a freed one had been took the freed one's responses: BRDF 0 where it is 0.0035; found by review).
+// Serial numbers for BeamSolution and LayeredSurface: a Workspace keys what it caches by them (the slab responses,
+// keyed by the address, were taken by a layer solved where a freed one had been: BRDF 0 where it is 0.0035; found
+// by review).
 inline std::uint64_t next_beam_serial() noexcept {
     static std::atomic<std::uint64_t> serial{0};
     return ++serial;
