@@ -541,8 +541,11 @@ TEST_CASE("a Workspace reuses an incidence's entry (and field) only for its own 
     // What an incidence computed on the fly lets into the layer (the entry: the top's couplings to the ordinates) is
     // kept in the Workspace, and between specular faces the incidence's field, so that calls at one incidence share
     // them (a 64 x 64 integral of the BRDF and BTDF at three incidences between smooth faces: 1.7 s -> 0.08 s). Each
-    // value below must be the fresh Workspace's: the keys hold the layer and the incidence (and the modes). Rough,
-    // smooth and index-matched faces; the exact pass (a rough top over a smooth bottom); a layer and its copy.
+    // value below must be the fresh Workspace's: the keys hold the layer and the incidence (and the modes: ambient()
+    // at an exit cosine equal to the next incidence leaves a field of mode 0 alone, which the BRDF must not take;
+    // found by review, 23 times the value in a stack). Rough, smooth and index-matched faces; the exact pass (a rough
+    // top over a smooth bottom); stacks with refracting joints (a specular top over them: the joints' mirror); a layer
+    // and its copy.
     LayerOptions o;
     o.ordinates = 8;
     const Slab<double> slab(0.9, 0.5, 1.0);
@@ -554,19 +557,24 @@ TEST_CASE("a Workspace reuses an incidence's entry (and field) only for its own 
     layers.push_back(solve_layer(Slab<double>(0.5, 0.2, 2.0), RoughDielectric<double>(0.2, 1.0, 1.5),
                                  SmoothDielectric<double>(1.5, 1.0), o));
     layers.push_back(layers[2]);
+    const std::vector<Slab<double>> two{Slab<double>(0.5, 0.5, 0.1), Slab<double>(0.5, 0.3, 0.15)};
+    const std::vector<stratum::Boundary<double>> joint{SmoothDielectric<double>(1.5, 1.4)};
+    layers.push_back(stratum::solve_stack(SmoothDielectric<double>(1.0, 1.5), two, joint, RoughDielectric<double>(0.3, 1.4, 1.0), o));
+    layers.push_back(stratum::solve_stack(SmoothDielectric<double>(1.0, 1.5), two, joint, SmoothDielectric<double>(1.4, 1.0), o));
     const Vec3<double> wo_up{0.3, 0.2, std::sqrt(0.87)}, wo_down{0.3, -0.4, -std::sqrt(0.75)};
     LayeredSurface<double>::Workspace ws;
     int checked = 0;
     for (const double mu : {0.6, 0.6, 0.9, 0.6})
-        for (const std::size_t i : {0u, 1u, 0u, 2u, 3u, 2u, 4u, 2u}) {
+        for (const std::size_t i : {0u, 1u, 0u, 2u, 3u, 2u, 4u, 2u, 5u, 6u, 5u}) {
             const LayeredSurface<double>& layer = layers[i];
-            const Vec3<double> wi{-std::sqrt(1 - mu * mu), 0, mu};
+            const Vec3<double> wi{-std::sqrt(1 - mu * mu), 0, mu}, sky{0, std::sqrt(1 - mu * mu), mu};
             INFO("mu " << mu << ", layer " << i);
+            CHECK(layer.ambient(sky, ws) == layer.ambient(sky));
             CHECK(layer.subsurface_brdf(wi, wo_up, ws) == layer.subsurface_brdf(wi, wo_up));
             CHECK(layer.btdf(wi, wo_down, ws) == layer.btdf(wi, wo_down));
             checked += layer.subsurface_brdf(wi, wo_up) > 0 && layer.btdf(wi, wo_down) > 0;
         }
-    CHECK(checked == 32);
+    CHECK(checked == 44);
 }
 
 TEST_CASE("a specular top over a rough bottom: the BRDF's pass reflected once by the bottom is exact at its angles") {

@@ -1743,8 +1743,8 @@ private:
     }
 
     // The entry at mu_i (returned) and the field (into fld), both kept from the solve for a requested incidence, else
-    // computed (the entry into ws.c). (The entry is computed every time it is not kept: a key in the Workspace naming
-    // the entry it held went stale after ambient() or another layer's call; found by review.)
+    // computed (the entry into ws.c, from the Workspace's own copy where it holds this layer's at mu_i: entry()). (A
+    // key naming ws.c's content, withdrawn, went stale after ambient() or another layer's call; found by review.)
     const Real* entry_and_field(Real mu_i, bool transmitted, Workspace& ws, const Real*& fld) const {
         fld = cached_field(mu_i, transmitted);
         for (std::size_t j = 0; j < incidence_.size() && fld; ++j)
@@ -2188,6 +2188,7 @@ private:
         std::vector<detail::BeamResponse<Real>>& at_y = ws.beam_y[transmitted ? 1 : 0];
         auto& key = ws.beam_y_key[transmitted ? 1 : 0];
         if (key.owner != beam_->serial || key.mu_o != mu_o || key.modes < f.modes) {
+            key.owner = 0;  // (until the new entry is complete: an exception leaves no valid-looking key)
             at_y.resize(count);
             for (std::size_t j = 0; j < count; ++j)
                 if (y[j] > 0) beam_->slabs[j].respond(y[j], f.modes, at_y[j], ws.scratch);
