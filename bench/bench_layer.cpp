@@ -183,28 +183,20 @@ BENCHMARK(BM_layer_solve_ambient)->Arg(8)->Arg(16)->Arg(24)->Arg(32)->Unit(bench
 // Evaluation at true angles: subsurface BRDF with the incidence computed on the fly (a new one on every call: the
 // Workspace keeps the last), with the same incidence on every call and a new exit, and with the incidence
 // precomputed through LayerRequest::incidence (what a renderer with a fixed light direction does).
-void BM_layer_eval_subsurface_brdf(benchmark::State& state) {
+void eval_subsurface_brdf(benchmark::State& state, bool same_incidence) {
     const auto layer = skin(static_cast<int>(state.range(0)));
     stratum::LayeredSurface<Real>::Workspace ws;
-    const auto wo = stratum::spherical_direction(0.5, 2.0);
     int i = 0;
     for (auto _ : state) {
-        const auto wi = stratum::spherical_direction(0.8 + 1e-9 * (i++ % 1000), 0.0);
+        const double step = 1e-9 * (i++ % 1000);
+        const auto wi = stratum::spherical_direction(same_incidence ? 0.8 : 0.8 + step, 0.0);
+        const auto wo = stratum::spherical_direction(same_incidence ? 0.5 + step : 0.5, 2.0);
         benchmark::DoNotOptimize(layer.subsurface_brdf(wi, wo, ws));
     }
 }
+void BM_layer_eval_subsurface_brdf(benchmark::State& state) { eval_subsurface_brdf(state, false); }
 BENCHMARK(BM_layer_eval_subsurface_brdf)->Arg(8)->Arg(16)->Arg(24)->Unit(benchmark::kMicrosecond);
-
-void BM_layer_eval_subsurface_brdf_same_incidence(benchmark::State& state) {
-    const auto layer = skin(static_cast<int>(state.range(0)));
-    stratum::LayeredSurface<Real>::Workspace ws;
-    const auto wi = stratum::spherical_direction(0.8, 0.0);
-    int i = 0;
-    for (auto _ : state) {
-        const auto wo = stratum::spherical_direction(0.5 + 1e-9 * (i++ % 1000), 2.0);
-        benchmark::DoNotOptimize(layer.subsurface_brdf(wi, wo, ws));
-    }
-}
+void BM_layer_eval_subsurface_brdf_same_incidence(benchmark::State& state) { eval_subsurface_brdf(state, true); }
 BENCHMARK(BM_layer_eval_subsurface_brdf_same_incidence)->Arg(8)->Arg(16)->Arg(24)->Unit(benchmark::kMicrosecond);
 
 void BM_layer_eval_subsurface_brdf_cached_incidence(benchmark::State& state) {
