@@ -329,7 +329,7 @@ void rotate_small_angle(Real cos_a, Real sin_a, Real d, Real& cos_out, Real& sin
 // rounding; the caller evaluates pdf at the phi returned, so a residual moves the sample, never the density it
 // reports). Where the truncated series dips below 0 the CDF is not monotone; bisection keeps
 // G(lo) <= target < G(hi), so the bracket still holds a root, and the caller's pdf (the clamped g) tells the truth.
-// cos phi and sin phi rotate the first bracket's centre (a table) by at most pi / 32 (rotate_small_angle): no sincos.
+// cos phi and sin phi rotate the coarse bracket's centre (a table) by at most pi / 32 (rotate_small_angle): no sincos.
 template <class Real>
 AzimuthSample<Real> sample_cosine_series(const Real* c, int order, Real u) noexcept {
     const Real pi = pi_v<Real>, target = u * c[0] * pi;
