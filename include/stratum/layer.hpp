@@ -1365,7 +1365,8 @@ private:
     void extend_faces(int modes);
     void add_beam_mode(int k, std::vector<detail::SlabModeSolution<Real>>&& slabs, const detail::PreparedStack<Real>& stack);
     void add_field_operators(int k, const detail::StackMode<Real>& below);
-    std::array<Real, 2> coefficient_size(int k, const ComponentOperators<Real>& bottom) const;
+    std::array<Real, 2> coefficient_size(int k, const ComponentOperators<Real>& bottom, const std::array<Real, 2>& exceeds,
+                                         std::array<std::size_t, 2>& column) const;
     void solve_ambient();
     void solve_depths(const detail::PreparedStack<Real>& stack, const std::vector<Slab<Real>>& slabs,
                       const LayerOptions& options, const std::vector<Real>& depths);
@@ -3194,6 +3195,7 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
     // adding of the stack and Q_b, Q_e serve only the ambient term and the whole layer's operators.
     bool slabs_only = beam_ && !includes(outputs_, LayerOutput::ambient) && !includes(outputs_, LayerOutput::operators);
     std::array<Real, 2> size0{Real(0), Real(0)};  // mode 0's sizes, reflected and transmitted (coefficient_size)
+    std::array<std::size_t, 2> size_column{0, 0};  // the columns where mode 0's sizes were found
     int negligible = 0;  // consecutive negligible modes
     for (int k = 0; k < modes; ++k) {
         if (k >= top_ops_->modes() || k >= bottom_ops_->modes()) extend_faces(modes);
@@ -3236,8 +3238,11 @@ void LayeredSurface<Real>::solve_modes(detail::PreparedStack<Real>& stack, int m
         if (below) add_field_operators(k, *below);
         modes_ = k + 1;
         if (!(tolerance > 0)) continue;
-        const std::array<Real, 2> size =
-            stack.any_rough ? coefficient_size(k, below->bottom) : std::array<Real, 2>{slab_size, Real(0)};
+        const Real none = std::numeric_limits<Real>::infinity();
+        const std::array<Real, 2> exceeds = k == 0 ? std::array<Real, 2>{none, none}
+                                                   : std::array<Real, 2>{tolerance * size0[0], tolerance * size0[1]};
+        const std::array<Real, 2> size = stack.any_rough ? coefficient_size(k, below->bottom, exceeds, size_column)
+                                                         : std::array<Real, 2>{slab_size, Real(0)};
         if (k == 0) size0 = size;
         negligible = (k > 0 && size[0] <= tolerance * size0[0] && size[1] <= tolerance * size0[1]) ? negligible + 1 : 0;
         if (negligible == 2) break;
@@ -3435,29 +3440,54 @@ void LayeredSurface<Real>::add_field_operators(int k, const detail::StackMode<Re
 // review); the layer's operators count as both (their transmission directly, where Q_e is not kept). (They were not measured: with the operators alone every mode was negligible, and the solve
 // stopped after 3 modes where mode 3 is 0.34 of mode 0's; found by review.) Like the BRDF's, the reflection's size
 // leaves out the top face's own R_12, which at grazing ordinates rings in every mode: measured with it, no mode
-// of Stam's layer was ever negligible.
+// of Stam's layer was ever negligible. Only whether a mode is negligible matters after mode 0: where one column
+// (the one of the last size computed in full) already exceeds `exceeds`, its value is returned, with products by a
+// vector in place of two matrix products (a mode that is not negligible, the usual case, costs O(M^2) here).
 template <class Real>
-std::array<Real, 2> LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real>& bottom) const {
+std::array<Real, 2> LayeredSurface<Real>::coefficient_size(int k, const ComponentOperators<Real>& bottom,
+                                                           const std::array<Real, 2>& exceeds,
+                                                           std::array<std::size_t, 2>& column) const {
     using detail::Matrix;
     const std::size_t m = q_.size();
     const Matrix<Real> t12 = detail::mode_matrix(top_ops_->T12(), k);
-    auto largest = [&](const Matrix<Real>& x) {  // (2 - delta_k0) max |x_nj| / (w_j mu_j)
+    const Real factor = k == 0 ? Real(1) : Real(2);
+    auto largest = [&](const Matrix<Real>& x, std::size_t& at) {  // (2 - delta_k0) max |x_nj| / (w_j mu_j), its column
         Real big = 0;
         for (std::size_t n = 0; n < m; ++n)
-            for (std::size_t j = 0; j < m; ++j) big = std::fmax(big, std::fabs(x(n, j)) / (q_.weights[j] * q_.nodes[j]));
-        return big * (k == 0 ? Real(1) : Real(2));
+            for (std::size_t j = 0; j < m; ++j) {
+                const Real v = std::fabs(x(n, j)) / (q_.weights[j] * q_.nodes[j]);
+                if (v > big) {
+                    big = v;
+                    at = j;
+                }
+            }
+        return big * factor;
     };
-    auto size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner) {
-        return largest(detail::multiply(exit, detail::multiply(inner, t12)));
+    // The size of exit inner T_12, or, where its column `at` alone (two products with a vector) already exceeds
+    // `floor`, that column's: a lower bound that decides as the size does (the mode is not negligible).
+    auto size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner, Real floor, std::size_t& at) {
+        std::vector<Real> v(m), w(m, Real(0));
+        for (std::size_t i = 0; i < m; ++i) v[i] = t12(i, at);
+        for (std::size_t n = 0; n < m; ++n)
+            for (std::size_t i = 0; i < m; ++i) w[n] += inner(n, i) * v[i];
+        Real big = 0;
+        for (std::size_t n = 0; n < m; ++n) {
+            Real x = 0;
+            for (std::size_t i = 0; i < m; ++i) x += exit(n, i) * w[i];
+            big = std::fmax(big, std::fabs(x));
+        }
+        big *= factor / (q_.weights[at] * q_.nodes[at]);
+        if (big > floor) return big;
+        return largest(detail::multiply(exit, detail::multiply(inner, t12)), at);
     };
     const bool operators = includes(outputs_, LayerOutput::operators) && !whole_.empty();
     std::array<Real, 2> size_k{Real(0), Real(0)};
     if (detail::needs_reflected(outputs_) || includes(outputs_, LayerOutput::ambient) || operators)
-        size_k[0] = size(detail::mode_matrix(top_ops_->T21(), k), qb_.back());
+        size_k[0] = size(detail::mode_matrix(top_ops_->T21(), k), qb_.back(), exceeds[0], column[0]);
     if (detail::needs_transmitted(outputs_)) {
-        size_k[1] = size(detail::as_matrix(m, bottom.transmission_down), qe_.back());
+        size_k[1] = size(detail::as_matrix(m, bottom.transmission_down), qe_.back(), exceeds[1], column[1]);
     } else if (operators) {
-        size_k[1] = largest(detail::as_matrix(m, whole_.back().transmission_down));
+        size_k[1] = largest(detail::as_matrix(m, whole_.back().transmission_down), column[1]);
     }
     return size_k;
 }
