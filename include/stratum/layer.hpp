@@ -3466,18 +3466,15 @@ std::array<Real, 2> LayeredSurface<Real>::coefficient_size(int k, const Componen
     // The size of exit inner T_12, or, where its column `at` alone (two products with a vector) already exceeds
     // `floor`, that column's: a lower bound that decides as the size does (the mode is not negligible).
     auto size = [&](const Matrix<Real>& exit, const Matrix<Real>& inner, Real floor, std::size_t& at) {
-        std::vector<Real> v(m), w(m, Real(0));
-        for (std::size_t i = 0; i < m; ++i) v[i] = t12(i, at);
-        for (std::size_t n = 0; n < m; ++n)
-            for (std::size_t i = 0; i < m; ++i) w[n] += inner(n, i) * v[i];
-        Real big = 0;
-        for (std::size_t n = 0; n < m; ++n) {
-            Real x = 0;
-            for (std::size_t i = 0; i < m; ++i) x += exit(n, i) * w[i];
-            big = std::fmax(big, std::fabs(x));
+        if (floor < std::numeric_limits<Real>::infinity()) {  // (after mode 0)
+            Matrix<Real> v(m, 1);
+            for (std::size_t i = 0; i < m; ++i) v(i, 0) = t12(i, at);
+            const Matrix<Real> x = detail::multiply(exit, detail::multiply(inner, v));
+            Real big = 0;
+            for (std::size_t n = 0; n < m; ++n) big = std::fmax(big, std::fabs(x(n, 0)));
+            big *= factor / (q_.weights[at] * q_.nodes[at]);
+            if (big > floor) return big;
         }
-        big *= factor / (q_.weights[at] * q_.nodes[at]);
-        if (big > floor) return big;
         return largest(detail::multiply(exit, detail::multiply(inner, t12)), at);
     };
     const bool operators = includes(outputs_, LayerOutput::operators) && !whole_.empty();
